@@ -1,0 +1,58 @@
+// Volume readers and image writers (SPEC §2, §6, §7; docs/formats.md).
+// Every reader checks sizes before allocating and throws fathom::Error
+// naming the file and the problem.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "fathom/image.h"
+#include "fathom/volume.h"
+
+namespace fathom {
+
+/// The layout of a headerless (raw) volume file.
+struct RawLayout {
+    std::array<std::int64_t, 3> dims{0, 0, 0};
+    DType dtype = DType::u8;
+    int components = 1;
+    bool big_endian = false;
+    std::uint64_t header_bytes = 0;
+    Vec3 spacing{1, 1, 1};
+    Vec3 origin{0, 0, 0};
+};
+
+/// Reads a raw file: a file shorter than header_bytes + data is an error, a
+/// longer one is read with a warning.
+Volume read_raw(const std::filesystem::path& path, const RawLayout& layout);
+
+/// Infers a layout from the common "name_XxYxZ_type.raw" file naming (type:
+/// uint8, int8, uint16, int16, uint32, int32, float32, float64, also with
+/// "be"/"le" suffix, e.g. uint16be); nullopt when the name does not follow it.
+std::optional<RawLayout> infer_raw_layout(const std::filesystem::path& path);
+
+/// NRRD (.nrrd attached, .nhdr detached; raw and gzip encodings; big/little
+/// endian; "data file:" single, list or %d pattern; spacings, space
+/// directions, space origin; LPS world per SPEC §2).
+Volume read_nrrd(const std::filesystem::path& path);
+
+/// MetaImage (.mhd with ElementDataFile, .mha with LOCAL data; raw and
+/// zlib-compressed data; Offset, ElementSpacing, TransformMatrix).
+Volume read_metaimage(const std::filesystem::path& path);
+
+/// Any supported volume file: the format is found from the content (magic
+/// bytes), then the extension, then the raw naming convention.
+Volume read_volume(const std::filesystem::path& path);
+
+/// Image files by extension: .pfm, .png, .exr (SPEC §6). Written to a
+/// temporary name beside the target and renamed, so a failure leaves no
+/// partial output. For PNG, png_alpha selects RGBA (A = α) over RGB.
+void write_image(const std::filesystem::path& path, const Image& image, bool png_alpha = false);
+
+/// Reads a PFM written by write_image (or any colour/grey PFM) into RGB with A = 1.
+Image read_pfm(const std::filesystem::path& path);
+
+}  // namespace fathom

@@ -1,0 +1,32 @@
+#include <gtest/gtest.h>
+
+#include "fathom/error.h"
+#include "fathom/volume.h"
+
+using namespace fathom;
+
+TEST(Volume, KeepsTypeAndIndexesXFastest) {
+    Volume v({3, 2, 2}, DType::u16);
+    EXPECT_EQ(v.size_bytes(), 3u * 2 * 2 * 2);
+    v.set_value(2, 1, 1, 65535.0);
+    EXPECT_EQ(v.data<std::uint16_t>()[2 + 3 * (1 + 2 * 1)], 65535);
+    EXPECT_DOUBLE_EQ(v.value(2, 1, 1), 65535.0);
+}
+
+TEST(Volume, RefusesAbsurdSizesBeforeAllocating) {
+    EXPECT_THROW(Volume({1 << 20, 1 << 20, 1 << 10}, DType::u8), Error);
+    EXPECT_THROW(Volume({0, 2, 2}, DType::u8), Error);
+}
+
+TEST(Volume, PlacementAndSmallestSpacing) {
+    Volume v({2, 2, 2}, DType::f32);
+    v.set_spacing({0.5, 2.0, 1.0});
+    v.set_origin({1, 2, 3});
+    EXPECT_DOUBLE_EQ(v.smallest_spacing(), 0.5);
+    const Vec3 w = v.index_to_world({1, 1, 1});
+    EXPECT_DOUBLE_EQ(w.x, 1.5);
+    EXPECT_DOUBLE_EQ(w.y, 4.0);
+    const Vec3 back = v.world_to_index(w);
+    EXPECT_NEAR(back.z, 1.0, 1e-15);
+    EXPECT_THROW(v.set_axes(Mat3::diagonal({1, 0, 1})), Error);
+}
