@@ -1,0 +1,16 @@
+// The fathom command line: one file per subcommand (docs/cli.md).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace fathom::cli {
+
+/// Thrown for usage errors that the parser cannot see (exit status 2).
+struct UsageError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+void add_render_command(CLI::App& app);
+void add_info_command(CLI::App& app);
+
+}  // namespace fathom::cli

@@ -1,0 +1,103 @@
+// Rendering: settings (SPEC §5, §7 "render"), the renderer over a scalar
+// volume with a transfer function or over pre-classified σ/RGB grids, and
+// single-ray tracing for tools and tests.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "fathom/camera.h"
+#include "fathom/image.h"
+#include "fathom/math.h"
+#include "fathom/transfer_function.h"
+#include "fathom/volume.h"
+
+namespace fathom {
+
+enum class Model { emission_absorption, absorption, emission, mip };
+enum class IntegratorKind { riemann, alpha, reference, preintegrated, preintegrated_simple };
+enum class SamplePoint { near, mid };
+enum class Order { front_to_back, back_to_front };
+
+std::string_view to_string(Model m);
+std::string_view to_string(IntegratorKind k);
+std::string_view to_string(SamplePoint s);
+std::string_view to_string(Order o);
+/// Parsers for the names used in scene files and on the command line;
+/// throw Error(subject, ...) listing the accepted names.
+Model parse_model(std::string_view s, const std::string& subject);
+IntegratorKind parse_integrator(std::string_view s, const std::string& subject);
+SamplePoint parse_sample_point(std::string_view s, const std::string& subject);
+Order parse_order(std::string_view s, const std::string& subject);
+
+struct RenderSettings {
+    int width = 512;
+    int height = 512;
+    Model model = Model::emission_absorption;
+    /// The contract's default is `preintegrated`; until that integrator
+    /// lands, fathom defaults to `alpha`.
+    IntegratorKind integrator = IntegratorKind::alpha;
+    double step = 0.5;        // in units of the smallest spacing, or world units
+    bool step_world = false;  // step_unit "world"
+    SamplePoint sample_point = SamplePoint::near;
+    Order order = Order::front_to_back;
+    double termination = 1e-3;
+    /// I_bg; when absent: black, white under the absorption model.
+    std::optional<Rgb> background;
+    bool transparent = false;  // background "transparent": I_bg = 0, PNG gets alpha
+    int threads = 0;           // 0: all hardware threads
+    /// Accuracy goal of the reference integrator (per channel, absolute for
+    /// radiance ≤ 1, relative above).
+    double reference_tolerance = 1e-5;
+
+    /// I_bg as the contract resolves it.
+    [[nodiscard]] Rgb background_radiance() const;
+    /// Throws Error("render settings", ...) on out-of-range values.
+    void validate() const;
+};
+
+struct RayResult {
+    Rgb radiance{0, 0, 0};
+    double alpha = 0.0;
+};
+
+/// Called from the rendering threads with (tiles done, tiles in all).
+using ProgressFn = std::function<void(int, int)>;
+
+class Renderer {
+public:
+    /// A scalar volume classified by a transfer function (opacity unit
+    /// distance defaults to the volume's smallest spacing). The volume must
+    /// outlive the renderer.
+    Renderer(const Volume& volume, const TransferFunction& tf, RenderSettings settings);
+    /// Pre-classified grids: density (1 component) and RGB color (3
+    /// components) on the same lattice, float32 or float64.
+    Renderer(const Volume& density, const Volume& color, RenderSettings settings);
+    ~Renderer();
+    Renderer(Renderer&&) noexcept;
+    Renderer& operator=(Renderer&&) noexcept;
+
+    [[nodiscard]] const RenderSettings& settings() const;
+    /// The ray integral of one ray (world-space origin and unit direction).
+    [[nodiscard]] RayResult trace(const Ray& ray) const;
+    /// The whole image; tiles over threads; the result does not depend on
+    /// the thread count.
+    [[nodiscard]] Image render(const Camera& camera, const ProgressFn& progress = {}) const;
+
+    struct Impl;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Centre and half-diagonal of a volume's box (for orbit cameras).
+struct Bounds {
+    Vec3 center;
+    double radius;
+};
+Bounds volume_bounds(const Volume& v);
+
+}  // namespace fathom

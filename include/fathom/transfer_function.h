@@ -1,0 +1,103 @@
+// Transfer functions (SPEC §3, docs/theory.md eq. (19)): a scalar v maps to
+// an extinction σ(v) ≥ 0 (1/world unit, piecewise linear between control
+// points) and to a non-associated color c(v) (source g = σ·c) or an
+// associated emission q(v) (g = q).
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "fathom/math.h"
+
+namespace fathom {
+
+/// A piecewise-linear function of v with N components, given by control
+/// points sorted by v. Points sharing one v make a jump: the first is the
+/// left limit, from that v on the last holds. Beyond the ends the end values
+/// hold (eq. (19)).
+template <int N>
+class PiecewiseLinear {
+public:
+    using Value = std::array<double, N>;
+
+    PiecewiseLinear() = default;
+    /// Points must be sorted by v (checked by the parsers, not here).
+    explicit PiecewiseLinear(std::vector<std::pair<double, Value>> points);
+
+    [[nodiscard]] Value operator()(double v) const;
+    [[nodiscard]] const std::vector<double>& knots() const { return v_; }
+    [[nodiscard]] const std::vector<Value>& values() const { return y_; }
+    [[nodiscard]] bool empty() const { return v_.empty(); }
+
+private:
+    std::vector<double> v_;
+    std::vector<Value> y_;
+};
+
+/// The transfer function as written (fathom-tf/1). Opacity points keep their
+/// opacity until the unit distance is known (it defaults to the volume's
+/// smallest spacing); classify() turns it into σ.
+struct TransferFunction {
+    enum class Alpha { opacity, extinction };
+
+    std::string name;
+    Alpha alpha_kind = Alpha::opacity;
+    std::vector<std::pair<double, double>> alpha_points;  // (v, a) or (v, σ)
+    std::optional<double> opacity_unit_distance;          // only with Alpha::opacity
+    bool associated = false;                              // true: "emission" (q); false: "color" (c)
+    std::vector<std::pair<double, Rgb>> color_points;     // (v, rgb)
+
+    /// Parses fathom-tf/1 JSON text; errors name `subject` (the file).
+    static TransferFunction from_json_text(std::string_view text, const std::string& subject);
+    static TransferFunction from_file(const std::filesystem::path& path);
+    /// A named preset, scaled to the value range [lo, hi] of the volume it
+    /// is applied to (presets are written over the normalised range [0, 1]).
+    static TransferFunction preset(std::string_view name, std::array<double, 2> value_range);
+    static std::vector<std::string> preset_names();
+
+    /// Serialises as fathom-tf/1 JSON.
+    [[nodiscard]] std::string to_json() const;
+};
+
+/// The transfer function ready for evaluation: σ(v) and c(v) (or q(v)).
+class Classifier {
+public:
+    Classifier() = default;
+    /// default_unit_distance: used when the TF's opacity_unit_distance is absent.
+    Classifier(const TransferFunction& tf, double default_unit_distance);
+
+    [[nodiscard]] double sigma(double v) const { return sigma_(v)[0]; }
+    /// c(v) for a "color" TF, q(v) for an "emission" TF.
+    [[nodiscard]] Rgb color(double v) const { return color_(v); }
+    /// The source g(v): σ(v)·c(v), or q(v) when associated.
+    [[nodiscard]] Rgb source(double v) const {
+        Rgb c = color_(v);
+        if (!associated_) {
+            const double s = sigma(v);
+            for (double& x : c) x *= s;
+        }
+        return c;
+    }
+    [[nodiscard]] bool associated() const { return associated_; }
+    [[nodiscard]] const PiecewiseLinear<1>& sigma_function() const { return sigma_; }
+    [[nodiscard]] const PiecewiseLinear<3>& color_function() const { return color_; }
+    /// Every control value of σ and of the color, sorted, without duplicates:
+    /// the v where σ(v) or g(v) may bend or jump.
+    [[nodiscard]] const std::vector<double>& breakpoints() const { return breaks_; }
+
+private:
+    PiecewiseLinear<1> sigma_;
+    PiecewiseLinear<3> color_;
+    bool associated_ = false;
+    std::vector<double> breaks_;
+};
+
+/// Opacity a per unit distance u → extinction (eq. (19)).
+double opacity_to_extinction(double a, double unit_distance);
+
+}  // namespace fathom

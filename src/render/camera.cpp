@@ -1,0 +1,64 @@
+// Ray generation, SPEC §4.
+#include "fathom/camera.h"
+
+#include <cmath>
+#include <numbers>
+
+#include "fathom/error.h"
+
+namespace fathom {
+
+Camera Camera::look_at(const Vec3& position, const Vec3& target, const Vec3& up_hint) {
+    const Vec3 f = target - position;
+    if (length(f) == 0.0) throw Error("camera", "'position' and 'look_at' are the same point");
+    Camera c;
+    c.position = position;
+    c.forward = normalize(f);
+    const Vec3 r = cross(c.forward, up_hint);
+    if (length(r) < 1e-12 * length(up_hint) || length(up_hint) == 0.0)
+        throw Error("camera", "'up' is zero or parallel to the viewing direction");
+    c.right = normalize(r);
+    c.up = cross(c.right, c.forward);
+    return c;
+}
+
+Camera Camera::from_matrix(const std::array<double, 16>& m, const std::string& subject) {
+    for (double x : m)
+        if (!std::isfinite(x)) throw Error(subject, "'camera_to_world' contains a non-finite number");
+    const Vec3 x{m[0], m[4], m[8]}, y{m[1], m[5], m[9]}, z{m[2], m[6], m[10]};
+    const std::array<Vec3, 3> cols{x, y, z};
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+            const double want = a == b ? 1.0 : 0.0;
+            if (std::abs(dot(cols[a], cols[b]) - want) > 1e-3)
+                throw Error(subject, "'camera_to_world' rotation is not orthonormal (|R^T R - I| > 1e-3)");
+        }
+    Camera c;
+    c.position = {m[3], m[7], m[11]};
+    c.forward = -z;  // eq.: f = -Z column, u = +Y column, r = +X column (SPEC §4)
+    c.up = y;
+    c.right = x;
+    return c;
+}
+
+Camera Camera::orbit(double azimuth_deg, double elevation_deg, double distance, const Vec3& center,
+                     double radius) {
+    const double a = azimuth_deg * std::numbers::pi / 180.0;
+    const double e = elevation_deg * std::numbers::pi / 180.0;
+    const Vec3 dir{std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e)};
+    const Vec3 up{-std::sin(e) * std::cos(a), -std::sin(e) * std::sin(a), std::cos(e)};
+    return look_at(center + dir * (distance * radius), center, up);
+}
+
+Ray Camera::generate(int px, int py, int width, int height_px) const {
+    const double aspect = static_cast<double>(width) / height_px;
+    const double x = (2.0 * (px + 0.5) / width - 1.0) * aspect;
+    const double y = 1.0 - 2.0 * (py + 0.5) / height_px;
+    if (projection == Projection::perspective) {
+        const double t = std::tan(fov_y_deg * std::numbers::pi / 360.0);
+        return {position, normalize(forward + right * (x * t) + up * (y * t))};
+    }
+    return {position + (right * x + up * y) * (height / 2.0), forward};
+}
+
+}  // namespace fathom

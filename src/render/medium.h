@@ -1,0 +1,38 @@
+// Media: what a ray sees at a point (ARCHITECTURE.md "Medium"). Both kinds
+// are cheap value types evaluated in index space:
+//   ScalarMedium<T>  a scalar volume classified by a transfer function;
+//   GridMedium<D, C> pre-classified density σ and RGB color grids, g = σ·c.
+#pragma once
+
+#include "fathom/math.h"
+#include "fathom/transfer_function.h"
+#include "integrate/accumulator.h"
+#include "volume/sampler.h"
+
+namespace fathom {
+
+template <class T>
+struct ScalarMedium {
+    static constexpr bool kHasScalar = true;
+    GridSampler<T> grid;
+    const Classifier* tf = nullptr;
+
+    [[nodiscard]] double scalar(const Vec3& p) const { return grid(p); }
+    [[nodiscard]] MediumSample classify(double v) const { return {tf->sigma(v), tf->source(v)}; }
+    [[nodiscard]] MediumSample at(const Vec3& p) const { return classify(scalar(p)); }
+};
+
+template <class D, class C>
+struct GridMedium {
+    static constexpr bool kHasScalar = false;
+    GridSampler<D> density;
+    GridSampler<C> color;
+
+    [[nodiscard]] MediumSample at(const Vec3& p) const {
+        const auto cell = density.cell(p);  // both grids share the lattice
+        const double s = density.interpolate(cell);
+        return {s, {s * color.interpolate(cell, 0), s * color.interpolate(cell, 1), s * color.interpolate(cell, 2)}};
+    }
+};
+
+}  // namespace fathom

@@ -1,0 +1,203 @@
+// The renderer: chooses one template instantiation of the ray integral per
+// frame (medium type × model × integrator), then runs tiles over threads.
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "fathom/error.h"
+#include "fathom/render.h"
+#include "integrate/alpha.h"
+#include "integrate/reference.h"
+#include "integrate/riemann.h"
+#include "render/medium.h"
+
+namespace fathom {
+
+using Tracer = std::function<RayResult(const RaySpan&)>;
+
+struct Renderer::Impl {
+    RenderSettings s;
+    const Volume* lattice = nullptr;  // the volume whose lattice and placement rays use
+    Classifier tf;
+    Mat3 world_to_index;
+    Vec3 origin;
+    double h = 0;  // step in world units
+    Rgb bg{};
+    Tracer tracer;
+
+    [[nodiscard]] RayResult trace(const Ray& ray) const {
+        const Vec3 p0 = world_to_index * (ray.origin - origin);
+        const Vec3 dp = world_to_index * ray.dir;
+        RaySpan span;
+        if (!intersect_box(p0, dp, lattice->dims(), span)) return {bg, 0.0};
+        return tracer(span);
+    }
+};
+
+namespace {
+
+void check_lattice(const Volume& v, const std::string& what) {
+    for (auto d : v.dims())
+        if (d < 2) throw Error(what, "every dimension must be at least 2 samples to interpolate");
+}
+
+template <Model M, class Medium>
+Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
+    const RenderSettings& s = im.s;
+    const double h = im.h;
+    const Rgb bg = im.bg;
+    switch (s.integrator) {
+        case IntegratorKind::riemann:
+            return [med, s, h, bg](const RaySpan& sp) { return integrate_riemann<M>(med, sp, s, h, bg); };
+        case IntegratorKind::alpha:
+            return [med, s, h, bg](const RaySpan& sp) { return integrate_alpha<M>(med, sp, s, h, bg); };
+        case IntegratorKind::reference: {
+            const std::vector<double>* breaks = &im.tf.breakpoints();
+            return [med, s, bg, breaks](const RaySpan& sp) {
+                return ReferenceIntegrator<M, Medium>(med, sp, s.reference_tolerance, breaks).run(bg);
+            };
+        }
+        case IntegratorKind::preintegrated:
+        case IntegratorKind::preintegrated_simple: break;
+    }
+    throw Error("integrator '" + std::string(to_string(s.integrator)) + "'",
+                "not available in this version (use alpha, riemann or reference)");
+}
+
+// eq. (23): the largest scalar over the n + 1 segment ends.
+template <class T>
+Tracer mip_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
+    const double h = im.h;
+    return [med, h](const RaySpan& sp) {
+        const std::int64_t n = segment_count(sp.length(), h);
+        const double delta = sp.length() / static_cast<double>(n);
+        double vmax = med.scalar(sp.at(sp.t_near));
+        for (std::int64_t i = 1; i <= n; ++i)
+            vmax = std::max(vmax, med.scalar(sp.at(sp.t_near + static_cast<double>(i) * delta)));
+        return RayResult{med.tf->color(vmax), 1.0};
+    };
+}
+
+template <class Medium>
+Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
+    switch (im.s.model) {
+        case Model::emission_absorption: return integrator_tracer<Model::emission_absorption>(med, im);
+        case Model::absorption: return integrator_tracer<Model::absorption>(med, im);
+        case Model::emission: return integrator_tracer<Model::emission>(med, im);
+        case Model::mip:
+            if constexpr (Medium::kHasScalar) return mip_tracer(med, im);
+            break;
+    }
+    throw Error("model 'mip'", "needs a scalar volume with a transfer function (pre-classified grids are refused)");
+}
+
+void setup(Renderer::Impl& im, const Volume& lattice) {
+    im.s.validate();
+    im.lattice = &lattice;
+    im.world_to_index = lattice.axes().inverse();
+    im.origin = lattice.origin();
+    im.h = im.s.step_world ? im.s.step : im.s.step * lattice.smallest_spacing();
+    im.bg = im.s.background_radiance();
+}
+
+}  // namespace
+
+Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSettings settings)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->s = settings;
+    check_lattice(volume, "volume");
+    if (volume.components() != 1)
+        throw Error("volume", "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
+    setup(*impl_, volume);
+    impl_->tf = Classifier(tf, volume.smallest_spacing());
+    impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
+        ScalarMedium<T> med{GridSampler<T>(volume), &impl_->tf};
+        return make_tracer(med, *impl_);
+    });
+}
+
+Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings settings)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->s = settings;
+    check_lattice(density, "density grid");
+    if (density.components() != 1) throw Error("density grid", "must have 1 component");
+    if (color.components() != 3) throw Error("color grid", "must have 3 components (RGB)");
+    if (density.dims() != color.dims()) throw Error("color grid", "dimensions differ from the density grid's");
+    auto is_float = [](DType t) { return t == DType::f32 || t == DType::f64; };
+    if (!is_float(density.dtype()) || !is_float(color.dtype()))
+        throw Error("pre-classified grids", "density and color must be float32 or float64");
+    setup(*impl_, density);
+    impl_->tracer = visit_dtype(density.dtype(), [&]<class D>(D*) -> Tracer {
+        if constexpr (std::is_floating_point_v<D>) {
+            return visit_dtype(color.dtype(), [&]<class C>(C*) -> Tracer {
+                if constexpr (std::is_floating_point_v<C>) {
+                    GridMedium<D, C> med{GridSampler<D>(density), GridSampler<C>(color)};
+                    return make_tracer(med, *impl_);
+                } else {
+                    return {};
+                }
+            });
+        } else {
+            return {};
+        }
+    });
+}
+
+Renderer::~Renderer() = default;
+Renderer::Renderer(Renderer&&) noexcept = default;
+Renderer& Renderer::operator=(Renderer&&) noexcept = default;
+
+const RenderSettings& Renderer::settings() const { return impl_->s; }
+
+RayResult Renderer::trace(const Ray& ray) const { return impl_->trace(ray); }
+
+Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
+    const RenderSettings& s = impl_->s;
+    Image img(s.width, s.height);
+    constexpr int kTile = 16;
+    const int tx = (s.width + kTile - 1) / kTile, ty = (s.height + kTile - 1) / kTile;
+    const int tiles = tx * ty;
+    std::atomic<int> next{0}, done{0};
+    std::exception_ptr failure;
+    std::mutex failure_mutex;
+    auto worker = [&] {
+        try {
+            for (int t = next++; t < tiles; t = next++) {
+                const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
+                for (int y = y0; y < std::min(y0 + kTile, s.height); ++y)
+                    for (int x = x0; x < std::min(x0 + kTile, s.width); ++x) {
+                        const RayResult r = impl_->trace(camera.generate(x, y, s.width, s.height));
+                        float* p = img.pixel(x, y);
+                        for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
+                        p[3] = static_cast<float>(r.alpha);
+                    }
+                const int d = ++done;
+                if (progress) progress(d, tiles);
+            }
+        } catch (...) {
+            std::lock_guard lock(failure_mutex);
+            if (!failure) failure = std::current_exception();
+            next = tiles;
+        }
+    };
+    int n = s.threads > 0 ? s.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    n = std::min(n, tiles);
+    std::vector<std::thread> pool;
+    for (int i = 1; i < n; ++i) pool.emplace_back(worker);
+    worker();
+    for (auto& th : pool) th.join();
+    if (failure) std::rethrow_exception(failure);
+    return img;
+}
+
+Bounds volume_bounds(const Volume& v) {
+    const Vec3 last{static_cast<double>(v.dims()[0] - 1), static_cast<double>(v.dims()[1] - 1),
+                    static_cast<double>(v.dims()[2] - 1)};
+    const Vec3 diag = v.axes() * last;
+    return {v.origin() + diag * 0.5, 0.5 * length(diag)};
+}
+
+}  // namespace fathom

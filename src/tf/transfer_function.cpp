@@ -1,0 +1,185 @@
+// fathom-tf/1 parsing and evaluation (SPEC §3, docs/theory.md eq. (19)).
+#include "fathom/transfer_function.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "fathom/error.h"
+#include "tf/tf_json.h"
+
+namespace fathom {
+
+template <int N>
+PiecewiseLinear<N>::PiecewiseLinear(std::vector<std::pair<double, Value>> points) {
+    v_.reserve(points.size());
+    y_.reserve(points.size());
+    for (auto& [v, y] : points) {
+        v_.push_back(v);
+        y_.push_back(y);
+    }
+}
+
+template <int N>
+typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::operator()(double v) const {
+    // k = the last point with v_k <= v: at a jump the last point holds.
+    const auto it = std::upper_bound(v_.begin(), v_.end(), v);
+    if (it == v_.begin()) return y_.front();
+    if (it == v_.end()) return y_.back();
+    const auto k = static_cast<std::size_t>(it - v_.begin()) - 1;
+    const double w = (v - v_[k]) / (v_[k + 1] - v_[k]);  // v_[k+1] > v >= v_[k]
+    Value r;
+    for (int c = 0; c < N; ++c) r[c] = y_[k][c] + w * (y_[k + 1][c] - y_[k][c]);
+    return r;
+}
+
+template class PiecewiseLinear<1>;
+template class PiecewiseLinear<3>;
+
+double opacity_to_extinction(double a, double unit_distance) {
+    return -std::log1p(-std::min(a, 1.0 - 1e-6)) / unit_distance;  // eq. (19)
+}
+
+Classifier::Classifier(const TransferFunction& tf, double default_unit_distance)
+    : associated_(tf.associated) {
+    std::vector<std::pair<double, std::array<double, 1>>> s;
+    s.reserve(tf.alpha_points.size());
+    const double u = tf.opacity_unit_distance.value_or(default_unit_distance);
+    for (const auto& [v, a] : tf.alpha_points) {
+        const double sigma = tf.alpha_kind == TransferFunction::Alpha::opacity ? opacity_to_extinction(a, u) : a;
+        s.push_back({v, {sigma}});
+    }
+    sigma_ = PiecewiseLinear<1>(std::move(s));
+    color_ = PiecewiseLinear<3>(tf.color_points);
+    for (const auto& p : tf.alpha_points) breaks_.push_back(p.first);
+    for (const auto& p : tf.color_points) breaks_.push_back(p.first);
+    std::sort(breaks_.begin(), breaks_.end());
+    breaks_.erase(std::unique(breaks_.begin(), breaks_.end()), breaks_.end());
+}
+
+namespace {
+
+using nlohmann::json;
+
+double finite_number(const json& j, const std::string& subject, const std::string& where) {
+    if (!j.is_number()) throw Error(subject, where + ": expected a number, got " + j.dump());
+    const double x = j.get<double>();
+    if (!std::isfinite(x)) throw Error(subject, where + ": number is not finite");
+    return x;
+}
+
+// Reads [[v, x...], ...] with `width` numbers per point, sorted by v.
+std::vector<std::vector<double>> read_points(const json& j, const std::string& key, std::size_t width,
+                                             const std::string& subject) {
+    if (!j.is_array()) throw Error(subject, "'" + key + "' must be a list of points");
+    if (j.empty()) throw Error(subject, "'" + key + "' is an empty list");
+    std::vector<std::vector<double>> pts;
+    for (std::size_t i = 0; i < j.size(); ++i) {
+        const std::string where = "'" + key + "' point " + std::to_string(i);
+        const json& p = j[i];
+        if (!p.is_array() || p.size() != width)
+            throw Error(subject, where + ": expected " + std::to_string(width) + " numbers, got " + p.dump());
+        std::vector<double> row;
+        for (std::size_t c = 0; c < width; ++c) row.push_back(finite_number(p[c], subject, where));
+        if (!pts.empty() && row[0] < pts.back()[0])
+            throw Error(subject, where + ": points are not sorted by value (" + std::to_string(row[0]) +
+                                     " after " + std::to_string(pts.back()[0]) + ")");
+        pts.push_back(std::move(row));
+    }
+    return pts;
+}
+
+}  // namespace
+
+TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subject) {
+    if (!j.is_object()) throw Error(subject, "a transfer function must be a JSON object");
+    static const std::array<std::string, 7> kKeys{"format", "name", "color", "emission",
+                                                  "opacity", "extinction", "opacity_unit_distance"};
+    for (const auto& [key, value] : j.items())
+        if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
+            throw Error(subject, "unknown key '" + key + "' in transfer function");
+    if (!j.contains("format")) throw Error(subject, "missing 'format' (expected \"fathom-tf/1\")");
+    if (j["format"] != "fathom-tf/1")
+        throw Error(subject, "format " + j["format"].dump() + " is not \"fathom-tf/1\"");
+    TransferFunction tf;
+    if (j.contains("name")) {
+        if (!j["name"].is_string()) throw Error(subject, "'name' must be a string");
+        tf.name = j["name"].get<std::string>();
+    }
+    const bool has_color = j.contains("color"), has_emission = j.contains("emission");
+    if (has_color == has_emission) throw Error(subject, "give exactly one of 'color' and 'emission'");
+    const bool has_opacity = j.contains("opacity"), has_ext = j.contains("extinction");
+    if (has_opacity == has_ext) throw Error(subject, "give exactly one of 'opacity' and 'extinction'");
+    if (has_ext && j.contains("opacity_unit_distance"))
+        throw Error(subject, "'opacity_unit_distance' is only allowed with 'opacity', not with 'extinction'");
+
+    tf.associated = has_emission;
+    const std::string ckey = has_color ? "color" : "emission";
+    for (const auto& p : read_points(j[ckey], ckey, 4, subject)) {
+        for (int c = 1; c < 4; ++c)
+            if (p[c] < 0) throw Error(subject, "'" + ckey + "' has a negative component at v = " + std::to_string(p[0]));
+        tf.color_points.push_back({p[0], {p[1], p[2], p[3]}});
+    }
+    tf.alpha_kind = has_opacity ? TransferFunction::Alpha::opacity : TransferFunction::Alpha::extinction;
+    const std::string akey = has_opacity ? "opacity" : "extinction";
+    for (const auto& p : read_points(j[akey], akey, 2, subject)) {
+        if (has_opacity && (p[1] < 0 || p[1] > 1))
+            throw Error(subject, "'opacity' " + std::to_string(p[1]) + " at v = " + std::to_string(p[0]) +
+                                     " is outside [0, 1]");
+        if (!has_opacity && p[1] < 0)
+            throw Error(subject, "'extinction' is negative at v = " + std::to_string(p[0]));
+        tf.alpha_points.push_back({p[0], p[1]});
+    }
+    if (j.contains("opacity_unit_distance")) {
+        const double u = finite_number(j["opacity_unit_distance"], subject, "'opacity_unit_distance'");
+        if (u <= 0) throw Error(subject, "'opacity_unit_distance' must be > 0");
+        tf.opacity_unit_distance = u;
+    }
+    return tf;
+}
+
+nlohmann::json tf_to_json(const TransferFunction& tf) {
+    json j;
+    j["format"] = "fathom-tf/1";
+    if (!tf.name.empty()) j["name"] = tf.name;
+    json c = json::array();
+    for (const auto& [v, rgb] : tf.color_points) c.push_back({v, rgb[0], rgb[1], rgb[2]});
+    j[tf.associated ? "emission" : "color"] = c;
+    json a = json::array();
+    for (const auto& [v, x] : tf.alpha_points) a.push_back({v, x});
+    j[tf.alpha_kind == TransferFunction::Alpha::opacity ? "opacity" : "extinction"] = a;
+    if (tf.opacity_unit_distance) j["opacity_unit_distance"] = *tf.opacity_unit_distance;
+    return j;
+}
+
+nlohmann::json parse_json_text(std::string_view text, const std::string& subject) {
+    try {
+        return json::parse(text.begin(), text.end());
+    } catch (const json::exception& e) {
+        throw Error(subject, std::string("invalid JSON: ") + e.what());
+    }
+}
+
+std::string read_text_file(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(path.string(), "cannot open file");
+    if (std::filesystem::is_directory(path)) throw Error(path.string(), "is a directory, expected a file");
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+TransferFunction TransferFunction::from_json_text(std::string_view text, const std::string& subject) {
+    return tf_from_json(parse_json_text(text, subject), subject);
+}
+
+TransferFunction TransferFunction::from_file(const std::filesystem::path& path) {
+    return from_json_text(read_text_file(path), path.string());
+}
+
+std::string TransferFunction::to_json() const { return tf_to_json(*this).dump(2); }
+
+}  // namespace fathom

@@ -1,0 +1,159 @@
+// The command line (SPEC §8): exit codes, no partial output, overrides,
+// thread-count independence.
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "fathom/io.h"
+#include "test_util.h"
+
+using fathom::test::TempDir;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+    int status;
+    std::string err;
+};
+
+Run fathom_cli(const std::string& args, const TempDir& d) {
+    const std::string errfile = (d / "stderr.txt").string();
+    const std::string cmd = fathom::test::cli() + " " + args + " >/dev/null 2>" + errfile + " </dev/null";
+    const int rc = std::system(cmd.c_str());
+    std::ifstream in(errfile);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, ss.str()};
+}
+
+void write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+
+// A small smooth uint8 volume as raw + a scene over it.
+void make_scene(const TempDir& d, const std::string& render = "") {
+    std::ofstream out(d / "v_16x12x10_uint8.raw", std::ios::binary);
+    for (int k = 0; k < 10; ++k)
+        for (int j = 0; j < 12; ++j)
+            for (int i = 0; i < 16; ++i) out.put(static_cast<char>((i * 13 + j * 7 + k * 29) % 200));
+    out.close();
+    write(d / "scene.json", R"({"format": "fathom-scene/1",
+        "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 10], "dtype": "uint8"},
+        "transfer_function": {"format": "fathom-tf/1", "color": [[0, 1, 0.5, 0], [200, 0, 0.5, 1]],
+                              "opacity": [[0, 0], [100, 0.2], [200, 0.6]]},
+        "camera": {"orbit": {"azimuth": 30, "elevation": 20}},
+        "render": {"width": 40, "height": 30)" + render + "}}");
+}
+
+std::vector<char> bytes(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), {}};
+}
+
+}  // namespace
+
+TEST(Cli, RendersASceneToEveryFormat) {
+    TempDir d;
+    make_scene(d);
+    for (const char* ext : {"pfm", "png", "exr"}) {
+        const fs::path out = d / (std::string("out.") + ext);
+        const Run r = fathom_cli("render " + (d / "scene.json").string() + " -o " + out.string(), d);
+        EXPECT_EQ(r.status, 0) << r.err;
+        EXPECT_TRUE(fs::exists(out)) << ext;
+    }
+    const fathom::Image img = fathom::read_pfm(d / "out.pfm");
+    EXPECT_EQ(img.width, 40);
+    EXPECT_EQ(img.height, 30);
+}
+
+TEST(Cli, ThreadCountDoesNotChangeTheImage) {
+    TempDir d;
+    make_scene(d, R"(, "integrator": "riemann")");
+    const std::string scene = (d / "scene.json").string();
+    ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "a.pfm").string() + " --threads 1", d).status, 0);
+    ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "b.pfm").string() + " --threads 2", d).status, 0);
+    ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "c.pfm").string() + " --threads 7", d).status, 0);
+    EXPECT_EQ(bytes(d / "a.pfm"), bytes(d / "b.pfm"));
+    EXPECT_EQ(bytes(d / "a.pfm"), bytes(d / "c.pfm"));
+}
+
+TEST(Cli, FlagsOverrideTheScene) {
+    TempDir d;
+    make_scene(d);
+    const std::string scene = (d / "scene.json").string();
+    ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "a.pfm").string() +
+                             " --width 12 --height 9 --model absorption --integrator reference --step 1 --order back-to-front --termination 0",
+                         d).status, 0);
+    const fathom::Image img = fathom::read_pfm(d / "a.pfm");
+    EXPECT_EQ(img.width, 12);
+    EXPECT_EQ(img.height, 9);
+    // absorption with the default white background: corners miss the box and are white
+    EXPECT_FLOAT_EQ(img.pixel(0, 0)[0], 1.0f);
+}
+
+TEST(Cli, NoSceneFormWithPreset) {
+    TempDir d;
+    make_scene(d);
+    const Run r = fathom_cli("render --volume " + (d / "v_16x12x10_uint8.raw").string() +
+                                 " --preset ct-bone --orbit 30,20,2.5 --width 16 --height 16 -o " + (d / "a.png").string(), d);
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(fs::exists(d / "a.png"));
+}
+
+TEST(Cli, UsageErrorsExitTwo) {
+    TempDir d;
+    make_scene(d);
+    const std::string scene = (d / "scene.json").string();
+    EXPECT_EQ(fathom_cli("", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene, d).status, 2);  // no -o
+    EXPECT_EQ(fathom_cli("render " + scene + " -o x.pfm --width abc", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " -o x.pfm --bogus", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " -o x.txt", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " -o x.pfm --integrator simpson", d).status, 2);
+    EXPECT_EQ(fathom_cli("render -o x.pfm", d).status, 2);
+    EXPECT_EQ(fathom_cli("render --volume v.raw -o x.pfm", d).status, 2);  // no --tf/--preset
+    EXPECT_EQ(fathom_cli("frobnicate", d).status, 2);
+    EXPECT_FALSE(fs::exists("x.pfm"));
+    EXPECT_EQ(fathom_cli("--help", d).status, 0);
+    EXPECT_EQ(fathom_cli("render --help", d).status, 0);
+    EXPECT_EQ(fathom_cli("--version", d).status, 0);
+}
+
+TEST(Cli, BadInputExitsOneWithOneMessageAndNoOutput) {
+    TempDir d;
+    make_scene(d);
+    const fs::path out = d / "out.pfm";
+    write(d / "broken.json", R"({"format": "fathom-scene/1", "volume": )");
+    write(d / "badtf.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 10],
+        "dtype": "uint8"}, "transfer_function": {"format": "fathom-tf/1", "color": [[0, 1, 1, 1]], "opacity": [[5, 0], [1, 1]]}})");
+    write(d / "short.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 11],
+        "dtype": "uint8"}, "transfer_function": {"preset": "grayscale"}})");
+    write(d / "huge.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [1000000, 1000000, 1000000],
+        "dtype": "uint8"}, "transfer_function": {"preset": "grayscale"}})");
+    for (const char* name : {"broken.json", "badtf.json", "short.json", "huge.json", "missing.json"}) {
+        const Run r = fathom_cli("render " + (d / name).string() + " -o " + out.string(), d);
+        EXPECT_EQ(r.status, 1) << name << ": " << r.err;
+        EXPECT_NE(r.err.find(name == std::string("short.json") || name == std::string("huge.json")
+                                 ? "v_16x12x10_uint8.raw" : name), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;  // one message
+        EXPECT_FALSE(fs::exists(out)) << name;
+    }
+    // an unwritable output leaves nothing behind
+    const Run w = fathom_cli("render " + (d / "scene.json").string() + " -o " + (d / "no/such/dir/x.pfm").string(), d);
+    EXPECT_EQ(w.status, 1);
+    EXPECT_NE(w.err.find("x.pfm"), std::string::npos);
+}
+
+TEST(Cli, InfoDescribesAVolume) {
+    TempDir d;
+    make_scene(d);
+    const std::string cmd = fathom::test::cli() + " info " + (d / "v_16x12x10_uint8.raw").string() + " > " + (d / "info.txt").string();
+    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    std::ifstream in(d / "info.txt");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    EXPECT_NE(ss.str().find("16"), std::string::npos);
+    EXPECT_NE(ss.str().find("uint8"), std::string::npos);
+    EXPECT_EQ(fathom_cli("info " + (d / "nothing.nrrd").string(), d).status, 1);
+}

@@ -1,0 +1,131 @@
+// Scene files (SPEC §7): parsing, overrides of header placement, errors.
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "fathom/error.h"
+#include "fathom/io.h"
+#include "fathom/scene.h"
+#include "test_util.h"
+
+using namespace fathom;
+using fathom::test::TempDir;
+
+namespace {
+
+void write(const std::filesystem::path& p, const std::string& text) { std::ofstream(p) << text; }
+
+// An 4×3×2 uint8 raw file with values 0..23.
+std::filesystem::path raw_volume(const TempDir& d) {
+    const auto p = d / "v.raw";
+    std::ofstream out(p, std::ios::binary);
+    for (int i = 0; i < 24; ++i) out.put(static_cast<char>(i));
+    return p;
+}
+
+std::string scene_with(const std::string& volume, const std::string& extra = "") {
+    return R"({"format": "fathom-scene/1", "volume": )" + volume +
+           R"(, "transfer_function": {"format": "fathom-tf/1", "color": [[0, 1, 1, 1]], "opacity": [[0, 0], [23, 0.5]]})" +
+           extra + "}";
+}
+
+std::string error_of(const std::string& text, const std::filesystem::path& base) {
+    try {
+        parse_scene(text, base, "scene.json");
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+}  // namespace
+
+TEST(Scene, RawVolumeWithRelativePathAndPlacement) {
+    TempDir d;
+    raw_volume(d);
+    write(d / "scene.json", scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8",
+        "spacing": [0.5, 1, 2], "origin": [1, 2, 3]})", R"(, "render": {"width": 8, "height": 6, "integrator": "riemann",
+        "sample_point": "mid", "step": 0.25, "step_unit": "world", "order": "back-to-front", "termination": 0,
+        "background": [0.1, 0.2, 0.3], "model": "absorption"}, "camera": {"orbit": {"azimuth": 10, "elevation": 5}}})");
+    const Scene sc = load_scene(d / "scene.json");
+    EXPECT_EQ(sc.volume.dims()[0], 4);
+    EXPECT_DOUBLE_EQ(sc.volume.value(3, 2, 1), 23.0);
+    EXPECT_DOUBLE_EQ(sc.volume.spacing().z, 2.0);
+    EXPECT_DOUBLE_EQ(sc.volume.origin().y, 2.0);
+    EXPECT_EQ(sc.settings.width, 8);
+    EXPECT_EQ(sc.settings.integrator, IntegratorKind::riemann);
+    EXPECT_EQ(sc.settings.sample_point, SamplePoint::mid);
+    EXPECT_TRUE(sc.settings.step_world);
+    EXPECT_EQ(sc.settings.order, Order::back_to_front);
+    EXPECT_EQ(sc.settings.model, Model::absorption);
+    EXPECT_DOUBLE_EQ(sc.settings.background_radiance()[2], 0.3);
+    const Image img = sc.renderer().render(sc.camera);
+    EXPECT_EQ(img.width, 8);
+}
+
+TEST(Scene, DefaultsFollowTheContract) {
+    TempDir d;
+    raw_volume(d);
+    const Scene sc = parse_scene(scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path(), "s");
+    EXPECT_EQ(sc.settings.width, 512);
+    EXPECT_EQ(sc.settings.height, 512);
+    EXPECT_EQ(sc.settings.model, Model::emission_absorption);
+    EXPECT_DOUBLE_EQ(sc.settings.step, 0.5);
+    EXPECT_DOUBLE_EQ(sc.settings.termination, 1e-3);
+    EXPECT_EQ(sc.settings.background_radiance(), (Rgb{0, 0, 0}));
+    RenderSettings s = sc.settings;
+    s.model = Model::absorption;  // white under absorption, also when the model comes later
+    EXPECT_EQ(s.background_radiance(), (Rgb{1, 1, 1}));
+    // orthographic height defaults to 2R
+    const Scene o = parse_scene(scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})",
+                                           R"(, "camera": {"projection": "orthographic", "position": [0, -9, 0], "look_at": [0, 0, 0]})"),
+                                d.path(), "s");
+    EXPECT_NEAR(o.camera.height, 2 * volume_bounds(o.volume).radius, 1e-12);
+    EXPECT_NEAR(o.camera.up.z, 1.0, 1e-12);  // up defaults to +z
+}
+
+TEST(Scene, PresetAndTfFileAndPreclassified) {
+    TempDir d;
+    raw_volume(d);
+    const Scene p = parse_scene(R"({"format": "fathom-scene/1", "volume": {"path": "v.raw", "dims": [4, 3, 2],
+        "dtype": "uint8"}, "transfer_function": {"preset": "ct-bone"}})", d.path(), "s");
+    EXPECT_EQ(p.tf.name, "ct-bone");
+    write(d / "tf.json", R"({"format": "fathom-tf/1", "color": [[0, 1, 1, 1]], "extinction": [[0, 2]]})");
+    const Scene t = parse_scene(R"({"format": "fathom-scene/1", "volume": {"path": "v.raw", "dims": [4, 3, 2],
+        "dtype": "uint8"}, "transfer_function": {"path": "tf.json"}})", d.path(), "s");
+    EXPECT_EQ(t.tf.alpha_kind, TransferFunction::Alpha::extinction);
+}
+
+TEST(Scene, ErrorsNameTheSceneAndTheProblem) {
+    TempDir d;
+    raw_volume(d);
+    const std::string vol = R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})";
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {scene_with(vol, R"(, "extra": 1)"), "unknown key 'extra'"},
+        {scene_with(vol, R"(, "render": {"widht": 3})"), "unknown key 'widht'"},
+        {scene_with(vol, R"(, "render": {"width": 0})"), "width"},
+        {scene_with(vol, R"(, "render": {"step": -1})"), "step"},
+        {scene_with(vol, R"(, "render": {"termination": 1})"), "termination"},
+        {scene_with(vol, R"(, "render": {"integrator": "simpson"})"), "unknown integrator 'simpson'"},
+        {scene_with(vol, R"(, "render": {"background": "pink"})"), "background"},
+        {scene_with(vol, R"(, "camera": {"orbit": {"azimuth": 3}})"), "elevation"},
+        {scene_with(vol, R"(, "camera": {"orbit": {"azimuth": 3, "elevation": 1}, "position": [1, 2, 3]})"), "exactly one"},
+        {scene_with(vol, R"(, "camera": {"camera_to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]})"),
+         "orthonormal"},
+        {scene_with(vol, R"(, "camera": {"position": [1, 1, 1], "look_at": [1, 1, 1]})"), "same point"},
+        {scene_with(R"({"path": "v.raw", "dims": [4, 3, 2]})"), "dtype"},
+        {scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8", "spacing": [1, 0, 1]})"), "spacing"},
+        {R"({"format": "fathom-scene/2"})", "fathom-scene/1"},
+        {R"({"format": "fathom-scene/1", "volume": )" + vol + "}", "transfer_function"},
+        {R"({"format": "fathom-scene/1", "volume": {"density": "a.nrrd"}})", "both"},
+        {"{\"format\": ", "invalid JSON"},
+    };
+    for (const auto& [text, needle] : cases) {
+        const std::string msg = error_of(text, d.path());
+        EXPECT_NE(msg.find("scene.json"), std::string::npos) << text << " -> " << msg;
+        EXPECT_NE(msg.find(needle), std::string::npos) << text << " -> " << msg;
+    }
+    // a missing volume file names that file
+    const std::string missing = error_of(scene_with(R"({"path": "nothere.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path());
+    EXPECT_NE(missing.find("nothere.raw"), std::string::npos) << missing;
+}
