@@ -14,12 +14,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
+struct CliRun {
     int status;
     std::string err;
 };
 
-Run fathom_cli(const std::string& args, const TempDir& d) {
+CliRun fathom_cli(const std::string& args, const TempDir& d) {
     const std::string errfile = (d / "stderr.txt").string();
     const std::string cmd = fathom::test::cli() + " " + args + " >/dev/null 2>" + errfile + " </dev/null";
     const int rc = std::system(cmd.c_str());
@@ -58,7 +58,7 @@ TEST(Cli, RendersASceneToEveryFormat) {
     make_scene(d);
     for (const char* ext : {"pfm", "png", "exr"}) {
         const fs::path out = d / (std::string("out.") + ext);
-        const Run r = fathom_cli("render " + (d / "scene.json").string() + " -o " + out.string(), d);
+        const CliRun r = fathom_cli("render " + (d / "scene.json").string() + " -o " + out.string(), d);
         EXPECT_EQ(r.status, 0) << r.err;
         EXPECT_TRUE(fs::exists(out)) << ext;
     }
@@ -95,7 +95,7 @@ TEST(Cli, FlagsOverrideTheScene) {
 TEST(Cli, NoSceneFormWithPreset) {
     TempDir d;
     make_scene(d);
-    const Run r = fathom_cli("render --volume " + (d / "v_16x12x10_uint8.raw").string() +
+    const CliRun r = fathom_cli("render --volume " + (d / "v_16x12x10_uint8.raw").string() +
                                  " --preset ct-bone --orbit 30,20,2.5 --width 16 --height 16 -o " + (d / "a.png").string(), d);
     EXPECT_EQ(r.status, 0) << r.err;
     EXPECT_TRUE(fs::exists(d / "a.png"));
@@ -132,7 +132,7 @@ TEST(Cli, BadInputExitsOneWithOneMessageAndNoOutput) {
     write(d / "huge.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [1000000, 1000000, 1000000],
         "dtype": "uint8"}, "transfer_function": {"preset": "grayscale"}})");
     for (const char* name : {"broken.json", "badtf.json", "short.json", "huge.json", "missing.json"}) {
-        const Run r = fathom_cli("render " + (d / name).string() + " -o " + out.string(), d);
+        const CliRun r = fathom_cli("render " + (d / name).string() + " -o " + out.string(), d);
         EXPECT_EQ(r.status, 1) << name << ": " << r.err;
         EXPECT_NE(r.err.find(name == std::string("short.json") || name == std::string("huge.json")
                                  ? "v_16x12x10_uint8.raw" : name), std::string::npos) << r.err;
@@ -140,7 +140,7 @@ TEST(Cli, BadInputExitsOneWithOneMessageAndNoOutput) {
         EXPECT_FALSE(fs::exists(out)) << name;
     }
     // an unwritable output leaves nothing behind
-    const Run w = fathom_cli("render " + (d / "scene.json").string() + " -o " + (d / "no/such/dir/x.pfm").string(), d);
+    const CliRun w = fathom_cli("render " + (d / "scene.json").string() + " -o " + (d / "no/such/dir/x.pfm").string(), d);
     EXPECT_EQ(w.status, 1);
     EXPECT_NE(w.err.find("x.pfm"), std::string::npos);
 }

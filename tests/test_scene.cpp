@@ -46,7 +46,7 @@ TEST(Scene, RawVolumeWithRelativePathAndPlacement) {
     write(d / "scene.json", scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8",
         "spacing": [0.5, 1, 2], "origin": [1, 2, 3]})", R"(, "render": {"width": 8, "height": 6, "integrator": "riemann",
         "sample_point": "mid", "step": 0.25, "step_unit": "world", "order": "back-to-front", "termination": 0,
-        "background": [0.1, 0.2, 0.3], "model": "absorption"}, "camera": {"orbit": {"azimuth": 10, "elevation": 5}}})");
+        "background": [0.1, 0.2, 0.3], "model": "absorption"}, "camera": {"orbit": {"azimuth": 10, "elevation": 5}})"));
     const Scene sc = load_scene(d / "scene.json");
     EXPECT_EQ(sc.volume.dims()[0], 4);
     EXPECT_DOUBLE_EQ(sc.volume.value(3, 2, 1), 23.0);

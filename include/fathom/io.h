@@ -55,4 +55,15 @@ void write_image(const std::filesystem::path& path, const Image& image, bool png
 /// Reads a PFM written by write_image (or any colour/grey PFM) into RGB with A = 1.
 Image read_pfm(const std::filesystem::path& path);
 
+/// Reads an 8- or 16-bit PNG (grey, grey+alpha, RGB, RGBA or palette) into
+/// linear RGBA: colour channels are sRGB-decoded (IEC 61966-2-1; gAMA, cHRM
+/// and iCCP chunks are ignored), alpha is kept linear in [0, 1], A = 1 when
+/// the file has no alpha (or tRNS).
+Image read_png(const std::filesystem::path& path);
+
+/// Reads the R, G, B and A channels of an OpenEXR file (any pixel type,
+/// returned as float) over its data window; a missing R, G or B reads 0, a
+/// missing A reads 1. A file with none of R, G, B is an error.
+Image read_exr(const std::filesystem::path& path);
+
 }  // namespace fathom
