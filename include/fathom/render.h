@@ -37,9 +37,7 @@ struct RenderSettings {
     int width = 512;
     int height = 512;
     Model model = Model::emission_absorption;
-    /// The contract's default is `preintegrated`; until that integrator
-    /// lands, fathom defaults to `alpha`.
-    IntegratorKind integrator = IntegratorKind::alpha;
+    IntegratorKind integrator = IntegratorKind::preintegrated;
     double step = 0.5;        // in units of the smallest spacing, or world units
     bool step_world = false;  // step_unit "world"
     SamplePoint sample_point = SamplePoint::near;

@@ -29,7 +29,13 @@ public:
     /// Points must be sorted by v (checked by the parsers, not here).
     explicit PiecewiseLinear(std::vector<std::pair<double, Value>> points);
 
-    [[nodiscard]] Value operator()(double v) const;
+    [[nodiscard]] Value operator()(double v) const { return on_piece(piece(v), v); }
+    /// The linear piece holding v: the number of knots ≤ v (0: before the
+    /// first knot, size(): after the last; both constant).
+    [[nodiscard]] std::size_t piece(double v) const;
+    /// Piece p's linear function at v (no search; exact at the piece's ends,
+    /// so one-sided limits at a jump come from choosing the piece).
+    [[nodiscard]] Value on_piece(std::size_t p, double v) const;
     [[nodiscard]] const std::vector<double>& knots() const { return v_; }
     [[nodiscard]] const std::vector<Value>& values() const { return y_; }
     [[nodiscard]] bool empty() const { return v_.empty(); }

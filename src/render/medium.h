@@ -20,6 +20,14 @@ struct ScalarMedium {
     [[nodiscard]] double scalar(const Vec3& p) const { return grid(p); }
     [[nodiscard]] MediumSample classify(double v) const { return {tf->sigma(v), tf->source(v)}; }
     [[nodiscard]] MediumSample at(const Vec3& p) const { return classify(scalar(p)); }
+    /// What pre-integration needs at a segment end: the scalar.
+    [[nodiscard]] double end_sample(const Vec3& p) const { return scalar(p); }
+};
+
+/// σ and the non-associated color at a point of pre-classified grids.
+struct GridEndSample {
+    double sigma = 0;
+    Rgb color{};
 };
 
 template <class D, class C>
@@ -32,6 +40,11 @@ struct GridMedium {
         const auto cell = density.cell(p);  // both grids share the lattice
         const double s = density.interpolate(cell);
         return {s, {s * color.interpolate(cell, 0), s * color.interpolate(cell, 1), s * color.interpolate(cell, 2)}};
+    }
+    [[nodiscard]] GridEndSample end_sample(const Vec3& p) const {
+        const auto cell = density.cell(p);
+        return {density.interpolate(cell),
+                {color.interpolate(cell, 0), color.interpolate(cell, 1), color.interpolate(cell, 2)}};
     }
 };
 

@@ -10,6 +10,7 @@
 #include "fathom/error.h"
 #include "fathom/render.h"
 #include "integrate/alpha.h"
+#include "integrate/preintegrated.h"
 #include "integrate/reference.h"
 #include "integrate/riemann.h"
 #include "render/medium.h"
@@ -61,10 +62,14 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
             };
         }
         case IntegratorKind::preintegrated:
-        case IntegratorKind::preintegrated_simple: break;
+        case IntegratorKind::preintegrated_simple: {
+            const bool full = s.integrator == IntegratorKind::preintegrated;
+            return [med, s, h, bg, full](const RaySpan& sp) {
+                return integrate_preintegrated<M>(med, sp, s, h, bg, full);
+            };
+        }
     }
-    throw Error("integrator '" + std::string(to_string(s.integrator)) + "'",
-                "not available in this version (use alpha, riemann or reference)");
+    throw Error("integrator", "unknown integrator");
 }
 
 // eq. (23): the largest scalar over the n + 1 segment ends.

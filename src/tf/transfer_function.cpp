@@ -24,13 +24,18 @@ PiecewiseLinear<N>::PiecewiseLinear(std::vector<std::pair<double, Value>> points
 }
 
 template <int N>
-typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::operator()(double v) const {
-    // k = the last point with v_k <= v: at a jump the last point holds.
-    const auto it = std::upper_bound(v_.begin(), v_.end(), v);
-    if (it == v_.begin()) return y_.front();
-    if (it == v_.end()) return y_.back();
-    const auto k = static_cast<std::size_t>(it - v_.begin()) - 1;
-    const double w = (v - v_[k]) / (v_[k + 1] - v_[k]);  // v_[k+1] > v >= v_[k]
+std::size_t PiecewiseLinear<N>::piece(double v) const {
+    return static_cast<std::size_t>(std::upper_bound(v_.begin(), v_.end(), v) - v_.begin());
+}
+
+template <int N>
+typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::on_piece(std::size_t p, double v) const {
+    // Piece p lies between knot p−1 (the last point at its v: at a jump the
+    // last one holds) and knot p, which is strictly larger.
+    if (p == 0) return y_.front();
+    if (p >= v_.size()) return y_.back();
+    const std::size_t k = p - 1;
+    const double w = (v - v_[k]) / (v_[k + 1] - v_[k]);
     Value r;
     for (int c = 0; c < N; ++c) r[c] = y_[k][c] + w * (y_[k + 1][c] - y_[k][c]);
     return r;
