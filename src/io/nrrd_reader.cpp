@@ -36,7 +36,10 @@ std::string canonical_key(std::string_view key) {
 /// Lower case with single spaces: "unsigned  Short" → "unsigned short".
 std::string normalized(std::string_view value) {
     std::string r;
-    for (auto t : io::split_ws(value)) r += (r.empty() ? "" : " ") + io::to_lower(t);
+    for (auto t : io::split_ws(value)) {
+        if (!r.empty()) r.push_back(' ');
+        r.append(io::to_lower(t));
+    }
     return r;
 }
 

@@ -20,7 +20,11 @@ std::string num(double v) {
     return buf.data();
 }
 
-std::string vec(const Vec3& v) { return "(" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + ")"; }
+std::string vec(const Vec3& v) {
+    std::string r = "(";
+    r.append(num(v.x)).append(", ").append(num(v.y)).append(", ").append(num(v.z)).push_back(')');
+    return r;
+}
 
 std::string padded(const std::string& s, std::size_t width) {
     return s.size() >= width ? s : std::string(width - s.size(), ' ') + s;
