@@ -4,6 +4,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "fathom/preintegration.h"
 #include "fathom/render.h"
 
 namespace {
@@ -35,8 +36,24 @@ void render(benchmark::State& state, fathom::IntegratorKind kind) {
                                                     benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// Exact pre-integration table of a 256-point transfer function (256² entries).
+void table_build(benchmark::State& state) {
+    fathom::TransferFunction tf;
+    tf.alpha_kind = fathom::TransferFunction::Alpha::opacity;
+    for (int i = 0; i < 256; ++i) {
+        const double v = i;
+        tf.alpha_points.push_back({v, 0.5 + 0.5 * std::sin(0.21 * v) * std::sin(0.033 * v)});
+        tf.color_points.push_back({v, {0.5 + 0.5 * std::sin(0.1 * v), 0.5, 0.5 + 0.5 * std::cos(0.07 * v)}});
+    }
+    const fathom::Classifier c(tf, 1.0);
+    const int threads = static_cast<int>(state.range(0));
+    for (auto _ : state)
+        benchmark::DoNotOptimize(fathom::build_preintegration_table(c, 0.0, 255.0, 256, 1.0, true, threads));
+}
+
 }  // namespace
 
+BENCHMARK(table_build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(render, alpha, fathom::IntegratorKind::alpha)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, riemann, fathom::IntegratorKind::riemann)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, reference, fathom::IntegratorKind::reference)->Arg(64)->Unit(benchmark::kMillisecond);

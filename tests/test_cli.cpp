@@ -1,5 +1,6 @@
 // The command line (SPEC §8): exit codes, no partial output, overrides,
 // thread-count independence.
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -156,4 +157,29 @@ TEST(Cli, InfoDescribesAVolume) {
     EXPECT_NE(ss.str().find("16"), std::string::npos);
     EXPECT_NE(ss.str().find("uint8"), std::string::npos);
     EXPECT_EQ(fathom_cli("info " + (d / "nothing.nrrd").string(), d).status, 1);
+}
+
+TEST(Cli, TfTableWritesPictureAndCsv) {
+    TempDir d;
+    write(d / "tf.json", R"({"format": "fathom-tf/1", "color": [[0, 1, 0.5, 0]], "extinction": [[0, 0], [10, 2]]})");
+    const std::string tf = (d / "tf.json").string();
+    EXPECT_EQ(fathom_cli("tf-table " + tf + " -o " + (d / "t.png").string() + " --size 16", d).status, 0);
+    EXPECT_TRUE(fs::exists(d / "t.png"));
+    ASSERT_EQ(fathom_cli("tf-table " + tf + " -o " + (d / "t.csv").string() + " --size 3 --range 0,10 --delta 0.5", d).status, 0);
+    std::ifstream in(d / "t.csv");
+    std::string header, first, second;
+    std::getline(in, header);
+    std::getline(in, first);
+    std::getline(in, second);
+    EXPECT_EQ(header, "v_front,v_back,alpha,r,g,b");
+    EXPECT_EQ(first, "0,0,0,0,0,0");  // σ(0) = 0
+    // v 5 → 0 over δ 0.5: mean σ = 0.5, α = 1 − e^{−0.25}
+    double vf = 0, vb = 0, a = 0;
+    char c = 0;
+    std::istringstream(second) >> vf >> c >> vb >> c >> a;
+    EXPECT_DOUBLE_EQ(vf, 5.0);
+    EXPECT_NEAR(a, 1 - std::exp(-0.25), 1e-7);
+    EXPECT_EQ(fathom_cli("tf-table " + tf + " -o " + (d / "t.txt").string(), d).status, 2);
+    EXPECT_EQ(fathom_cli("tf-table " + (d / "none.json").string() + " -o " + (d / "u.png").string(), d).status, 1);
+    EXPECT_FALSE(fs::exists(d / "u.png"));
 }

@@ -66,4 +66,7 @@ Image read_png(const std::filesystem::path& path);
 /// missing A reads 1. A file with none of R, G, B is an error.
 Image read_exr(const std::filesystem::path& path);
 
+/// Writes text to a file atomically (temporary name, then rename).
+void write_text_file(const std::filesystem::path& path, const std::string& text);
+
 }  // namespace fathom

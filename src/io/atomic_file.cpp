@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "fathom/error.h"
+#include "fathom/io.h"
 
 namespace fathom::io {
 namespace {
@@ -83,3 +84,13 @@ void AtomicFile::commit() {
 }
 
 }  // namespace fathom::io
+
+namespace fathom {
+
+void write_text_file(const std::filesystem::path& path, const std::string& text) {
+    io::AtomicFile file(path);
+    file.write(text.data(), text.size());
+    file.commit();
+}
+
+}  // namespace fathom
