@@ -129,3 +129,14 @@ TEST(Scene, ErrorsNameTheSceneAndTheProblem) {
     const std::string missing = error_of(scene_with(R"({"path": "nothere.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path());
     EXPECT_NE(missing.find("nothere.raw"), std::string::npos) << missing;
 }
+
+TEST(Scene, ExampleScenesLoadAndRender) {
+    for (const char* name : {"lidc2-bone.json", "lidc2-spike.json"}) {
+        Scene sc = load_scene(fathom::test::source_dir() / "examples" / name);
+        sc.settings.width = sc.settings.height = 8;
+        const Image img = sc.renderer().render(sc.camera);
+        float sum = 0;
+        for (float v : img.rgba) sum += v;
+        EXPECT_GT(sum, 0.0f) << name;
+    }
+}
