@@ -15,8 +15,10 @@ fathom::Volume make_volume() {
     for (int k = 0; k < 128; ++k)
         for (int j = 0; j < 128; ++j)
             for (int i = 0; i < 128; ++i) {
-                const double r = std::sqrt((i - 64.0) * (i - 64.0) + (j - 64.0) * (j - 64.0) + (k - 64.0) * (k - 64.0));
-                d[i + 128 * (j + 128 * k)] = static_cast<std::uint8_t>(std::clamp(255.0 - 4.0 * r, 0.0, 255.0));
+                const double r =
+                    std::sqrt((i - 64.0) * (i - 64.0) + (j - 64.0) * (j - 64.0) + (k - 64.0) * (k - 64.0));
+                d[i + 128 * (j + 128 * k)] =
+                    static_cast<std::uint8_t>(std::clamp(255.0 - 4.0 * r, 0.0, 255.0));
             }
     return v;
 }
@@ -56,6 +58,8 @@ void table_build(benchmark::State& state) {
 BENCHMARK(table_build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(render, alpha, fathom::IntegratorKind::alpha)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, riemann, fathom::IntegratorKind::riemann)->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(render, reference, fathom::IntegratorKind::reference)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(render, reference, fathom::IntegratorKind::reference)
+    ->Arg(64)
+    ->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

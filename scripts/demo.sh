@@ -7,6 +7,6 @@ cd "$(dirname "$0")/.."
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DFATHOM_BUILD_TESTS=OFF
 cmake --build build --parallel
 mkdir -p out
-./build/fathom render --volume data/lidc2.nrrd --preset ct-bone --orbit 200,15,2.2 \
+./build/fathom render --volume data/lidc2.nrrd --preset ct-bone --orbit 90,10,2.6 \
   --width 512 --height 512 -o out/lidc2-bone.png
 echo "wrote out/lidc2-bone.png"

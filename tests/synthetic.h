@@ -17,7 +17,8 @@ inline Volume make_volume(std::int64_t nx, std::int64_t ny, std::int64_t nz,
     for (std::int64_t k = 0; k < nz; ++k)
         for (std::int64_t j = 0; j < ny; ++j)
             for (std::int64_t i = 0; i < nx; ++i)
-                v.set_value(i, j, k, f(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+                v.set_value(i, j, k,
+                            f(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
     return v;
 }
 

@@ -7,6 +7,7 @@
 
 #include "fathom/error.h"
 #include "fathom/render.h"
+
 #include "synthetic.h"
 
 using namespace fathom;
@@ -18,8 +19,8 @@ struct Pixel {
 };
 
 // Projects world point p through a camera given by its frame (independent of Camera::generate).
-Pixel project(const Vec3& p, const Vec3& pos, const Vec3& f, const Vec3& r, const Vec3& u, bool ortho, double fov_deg,
-              double height, int W, int H) {
+Pixel project(const Vec3& p, const Vec3& pos, const Vec3& f, const Vec3& r, const Vec3& u, bool ortho,
+              double fov_deg, double height, int W, int H) {
     const Vec3 v = p - pos;
     const double aspect = static_cast<double>(W) / H;
     double x, y;
@@ -32,7 +33,8 @@ Pixel project(const Vec3& p, const Vec3& pos, const Vec3& f, const Vec3& r, cons
         y = dot(v, u) / dot(v, f) / t;
     }
     // x = (2(px + 0.5)/W − 1)·aspect, y = 1 − 2(py + 0.5)/H
-    return {static_cast<int>(std::lround((x / aspect + 1) * W / 2 - 0.5)), static_cast<int>(std::lround((1 - y) * H / 2 - 0.5))};
+    return {static_cast<int>(std::lround((x / aspect + 1) * W / 2 - 0.5)),
+            static_cast<int>(std::lround((1 - y) * H / 2 - 0.5))};
 }
 
 Pixel brightest(const Image& img) {
@@ -45,7 +47,8 @@ Pixel brightest(const Image& img) {
 }
 
 struct Fixture {
-    Volume vol = fathom::test::make_volume(9, 9, 9, [](double, double, double) { return 0.0; }, 0.5);
+    Volume vol = fathom::test::make_volume(
+        9, 9, 9, [](double, double, double) { return 0.0; }, 0.5);
     TransferFunction tf;
     Vec3 voxel_world;
     Fixture() {
@@ -79,10 +82,22 @@ TEST(Camera, BrightVoxelLandsOnPredictedPixelForEveryForm) {
         cams.emplace_back("orbit-pole", Camera::orbit(10, 90, 3, b.center, b.radius));
         // camera_to_world: columns r, u, −f and the position
         const Camera la = Camera::look_at(b.center + Vec3{-4.0, 1.0, -2.0}, b.center, {0, 1, 0});
-        const std::array<double, 16> m{la.right.x, la.up.x, -la.forward.x, la.position.x,
-                                       la.right.y, la.up.y, -la.forward.y, la.position.y,
-                                       la.right.z, la.up.z, -la.forward.z, la.position.z,
-                                       0, 0, 0, 1};
+        const std::array<double, 16> m{la.right.x,
+                                       la.up.x,
+                                       -la.forward.x,
+                                       la.position.x,
+                                       la.right.y,
+                                       la.up.y,
+                                       -la.forward.y,
+                                       la.position.y,
+                                       la.right.z,
+                                       la.up.z,
+                                       -la.forward.z,
+                                       la.position.z,
+                                       0,
+                                       0,
+                                       0,
+                                       1};
         cams.emplace_back("camera_to_world", Camera::from_matrix(m));
         for (auto& [name, cam] : cams) {
             cam.projection = ortho ? Projection::orthographic : Projection::perspective;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "fathom/io.h"
+
 #include "test_util.h"
 
 using fathom::test::TempDir;
@@ -30,7 +31,9 @@ CliRun fathom_cli(const std::string& args, const TempDir& d) {
     return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, ss.str()};
 }
 
-void write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+void write(const fs::path& p, const std::string& text) {
+    std::ofstream(p) << text;
+}
 
 // A small smooth uint8 volume as raw + a scene over it.
 void make_scene(const TempDir& d, const std::string& render = "") {
@@ -44,7 +47,8 @@ void make_scene(const TempDir& d, const std::string& render = "") {
         "transfer_function": {"format": "fathom-tf/1", "color": [[0, 1, 0.5, 0], [200, 0, 0.5, 1]],
                               "opacity": [[0, 0], [100, 0.2], [200, 0.6]]},
         "camera": {"orbit": {"azimuth": 30, "elevation": 20}},
-        "render": {"width": 40, "height": 30)" + render + "}}");
+        "render": {"width": 40, "height": 30)" +
+                                render + "}}");
 }
 
 std::vector<char> bytes(const fs::path& p) {
@@ -84,8 +88,11 @@ TEST(Cli, FlagsOverrideTheScene) {
     make_scene(d);
     const std::string scene = (d / "scene.json").string();
     ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "a.pfm").string() +
-                             " --width 12 --height 9 --model absorption --integrator reference --step 1 --order back-to-front --termination 0",
-                         d).status, 0);
+                             " --width 12 --height 9 --model absorption --integrator reference --step 1 "
+                             "--order back-to-front --termination 0",
+                         d)
+                  .status,
+              0);
     const fathom::Image img = fathom::read_pfm(d / "a.pfm");
     EXPECT_EQ(img.width, 12);
     EXPECT_EQ(img.height, 9);
@@ -97,7 +104,9 @@ TEST(Cli, NoSceneFormWithPreset) {
     TempDir d;
     make_scene(d);
     const CliRun r = fathom_cli("render --volume " + (d / "v_16x12x10_uint8.raw").string() +
-                                 " --preset ct-bone --orbit 30,20,2.5 --width 16 --height 16 -o " + (d / "a.png").string(), d);
+                                    " --preset ct-bone --orbit 30,20,2.5 --width 16 --height 16 -o " +
+                                    (d / "a.png").string(),
+                                d);
     EXPECT_EQ(r.status, 0) << r.err;
     EXPECT_TRUE(fs::exists(d / "a.png"));
 }
@@ -126,22 +135,30 @@ TEST(Cli, BadInputExitsOneWithOneMessageAndNoOutput) {
     make_scene(d);
     const fs::path out = d / "out.pfm";
     write(d / "broken.json", R"({"format": "fathom-scene/1", "volume": )");
-    write(d / "badtf.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 10],
+    write(d / "badtf.json",
+          R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 10],
         "dtype": "uint8"}, "transfer_function": {"format": "fathom-tf/1", "color": [[0, 1, 1, 1]], "opacity": [[5, 0], [1, 1]]}})");
-    write(d / "short.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 11],
+    write(d / "short.json",
+          R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [16, 12, 11],
         "dtype": "uint8"}, "transfer_function": {"preset": "grayscale"}})");
-    write(d / "huge.json", R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [1000000, 1000000, 1000000],
+    write(
+        d / "huge.json",
+        R"({"format": "fathom-scene/1", "volume": {"path": "v_16x12x10_uint8.raw", "dims": [1000000, 1000000, 1000000],
         "dtype": "uint8"}, "transfer_function": {"preset": "grayscale"}})");
     for (const char* name : {"broken.json", "badtf.json", "short.json", "huge.json", "missing.json"}) {
         const CliRun r = fathom_cli("render " + (d / name).string() + " -o " + out.string(), d);
         EXPECT_EQ(r.status, 1) << name << ": " << r.err;
         EXPECT_NE(r.err.find(name == std::string("short.json") || name == std::string("huge.json")
-                                 ? "v_16x12x10_uint8.raw" : name), std::string::npos) << r.err;
+                                 ? "v_16x12x10_uint8.raw"
+                                 : name),
+                  std::string::npos)
+            << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;  // one message
         EXPECT_FALSE(fs::exists(out)) << name;
     }
     // an unwritable output leaves nothing behind
-    const CliRun w = fathom_cli("render " + (d / "scene.json").string() + " -o " + (d / "no/such/dir/x.pfm").string(), d);
+    const CliRun w =
+        fathom_cli("render " + (d / "scene.json").string() + " -o " + (d / "no/such/dir/x.pfm").string(), d);
     EXPECT_EQ(w.status, 1);
     EXPECT_NE(w.err.find("x.pfm"), std::string::npos);
 }
@@ -149,7 +166,8 @@ TEST(Cli, BadInputExitsOneWithOneMessageAndNoOutput) {
 TEST(Cli, InfoDescribesAVolume) {
     TempDir d;
     make_scene(d);
-    const std::string cmd = fathom::test::cli() + " info " + (d / "v_16x12x10_uint8.raw").string() + " > " + (d / "info.txt").string();
+    const std::string cmd = fathom::test::cli() + " info " + (d / "v_16x12x10_uint8.raw").string() + " > " +
+                            (d / "info.txt").string();
     ASSERT_EQ(std::system(cmd.c_str()), 0);
     std::ifstream in(d / "info.txt");
     std::stringstream ss;
@@ -161,11 +179,16 @@ TEST(Cli, InfoDescribesAVolume) {
 
 TEST(Cli, TfTableWritesPictureAndCsv) {
     TempDir d;
-    write(d / "tf.json", R"({"format": "fathom-tf/1", "color": [[0, 1, 0.5, 0]], "extinction": [[0, 0], [10, 2]]})");
+    write(d / "tf.json",
+          R"({"format": "fathom-tf/1", "color": [[0, 1, 0.5, 0]], "extinction": [[0, 0], [10, 2]]})");
     const std::string tf = (d / "tf.json").string();
     EXPECT_EQ(fathom_cli("tf-table " + tf + " -o " + (d / "t.png").string() + " --size 16", d).status, 0);
     EXPECT_TRUE(fs::exists(d / "t.png"));
-    ASSERT_EQ(fathom_cli("tf-table " + tf + " -o " + (d / "t.csv").string() + " --size 3 --range 0,10 --delta 0.5", d).status, 0);
+    ASSERT_EQ(
+        fathom_cli("tf-table " + tf + " -o " + (d / "t.csv").string() + " --size 3 --range 0,10 --delta 0.5",
+                   d)
+            .status,
+        0);
     std::ifstream in(d / "t.csv");
     std::string header, first, second;
     std::getline(in, header);
@@ -180,6 +203,7 @@ TEST(Cli, TfTableWritesPictureAndCsv) {
     EXPECT_DOUBLE_EQ(vf, 5.0);
     EXPECT_NEAR(a, 1 - std::exp(-0.25), 1e-7);
     EXPECT_EQ(fathom_cli("tf-table " + tf + " -o " + (d / "t.txt").string(), d).status, 2);
-    EXPECT_EQ(fathom_cli("tf-table " + (d / "none.json").string() + " -o " + (d / "u.png").string(), d).status, 1);
+    EXPECT_EQ(
+        fathom_cli("tf-table " + (d / "none.json").string() + " -o " + (d / "u.png").string(), d).status, 1);
     EXPECT_FALSE(fs::exists(d / "u.png"));
 }

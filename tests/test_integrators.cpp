@@ -7,6 +7,7 @@
 
 #include "fathom/error.h"
 #include "fathom/render.h"
+
 #include "synthetic.h"
 
 using namespace fathom;
@@ -25,10 +26,13 @@ RenderSettings settings(IntegratorKind k, SamplePoint sp = SamplePoint::near, do
 }
 
 // A ray along +x through the middle of an n³ box: t_near = 1, L = n − 1.
-Ray x_ray(double n) { return {{-1.0, (n - 1) / 2.0 + 0.25, (n - 1) / 2.0 - 0.125}, {1.0, 0.0, 0.0}}; }
+Ray x_ray(double n) {
+    return {{-1.0, (n - 1) / 2.0 + 0.25, (n - 1) / 2.0 - 0.125}, {1.0, 0.0, 0.0}};
+}
 
-constexpr std::array<IntegratorKind, 5> kAll{IntegratorKind::riemann, IntegratorKind::alpha, IntegratorKind::reference,
-                                             IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple};
+constexpr std::array<IntegratorKind, 5> kAll{IntegratorKind::riemann, IntegratorKind::alpha,
+                                             IntegratorKind::reference, IntegratorKind::preintegrated,
+                                             IntegratorKind::preintegrated_simple};
 
 }  // namespace
 
@@ -44,7 +48,8 @@ TEST(Integrators, HomogeneousMediumMatchesClosedForm) {
             s.background = bg;
             const RayResult r = Renderer(vol, tf, s).trace(x_ray(5));
             for (int ch = 0; ch < 3; ++ch)
-                EXPECT_NEAR(r.radiance[ch], bg[ch] * std::exp(-sigma * L) + c[ch] * (1 - std::exp(-sigma * L)), 1e-12)
+                EXPECT_NEAR(r.radiance[ch],
+                            bg[ch] * std::exp(-sigma * L) + c[ch] * (1 - std::exp(-sigma * L)), 1e-12)
                     << to_string(kind);
             EXPECT_NEAR(r.alpha, 1 - std::exp(-sigma * L), 1e-12);
         }
@@ -150,10 +155,12 @@ TEST(Integrators, ReferenceMeetsItsToleranceOnJumpsAndKinks) {
     // fine alpha-mid sum (error O(δ²) away from the jump, O(δ) at it).
     const Smooth sc;
     TransferFunction tf = sc.tf;
-    tf.alpha_points = {{0.0, 0.0}, {0.45, 0.1}, {0.45, 1.5}, {0.5, 0.2}, {0.52, 3.0}, {0.54, 0.2}, {1.0, 0.4}};
+    tf.alpha_points = {{0.0, 0.0},  {0.45, 0.1}, {0.45, 1.5}, {0.5, 0.2},
+                       {0.52, 3.0}, {0.54, 0.2}, {1.0, 0.4}};
     auto rs = settings(IntegratorKind::reference);
     const RayResult ref = Renderer(sc.vol, tf, rs).trace(sc.ray);
-    const RayResult fine = Renderer(sc.vol, tf, settings(IntegratorKind::alpha, SamplePoint::mid, 1e-4)).trace(sc.ray);
+    const RayResult fine =
+        Renderer(sc.vol, tf, settings(IntegratorKind::alpha, SamplePoint::mid, 1e-4)).trace(sc.ray);
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(ref.radiance[c], fine.radiance[c], 2e-5);
     EXPECT_NEAR(ref.alpha, fine.alpha, 2e-5);
 }
@@ -171,7 +178,8 @@ TEST(Integrators, FrontToBackEqualsBackToFront) {
                 const RayResult rf = Renderer(sc.vol, sc.tf, f).trace(sc.ray);
                 const RayResult rb = Renderer(sc.vol, sc.tf, b).trace(sc.ray);
                 for (int c = 0; c < 3; ++c)
-                    EXPECT_LE(std::abs(rf.radiance[c] - rb.radiance[c]), 1e-5 * std::max(1.0, std::abs(rb.radiance[c])));
+                    EXPECT_LE(std::abs(rf.radiance[c] - rb.radiance[c]),
+                              1e-5 * std::max(1.0, std::abs(rb.radiance[c])));
                 EXPECT_NEAR(rf.alpha, rb.alpha, 1e-12);
             }
 }
@@ -212,12 +220,12 @@ TEST(Integrators, MissingAndGrazingRaysSeeTheBackground) {
     auto s = settings(IntegratorKind::alpha);
     s.background = Rgb{0.5, 0.5, 0.5};
     const Renderer r(vol, tf, s);
-    EXPECT_EQ(r.trace({{-1, 10, 2}, {1, 0, 0}}).alpha, 0.0);                 // misses
-    EXPECT_EQ(r.trace({{-1, 2, 2}, {-1, 0, 0}}).radiance[0], 0.5);           // box behind the camera (t < 0)
+    EXPECT_EQ(r.trace({{-1, 10, 2}, {1, 0, 0}}).alpha, 0.0);        // misses
+    EXPECT_EQ(r.trace({{-1, 2, 2}, {-1, 0, 0}}).radiance[0], 0.5);  // box behind the camera (t < 0)
     const RayResult corner = r.trace({{-1, 1, 2}, normalize(Vec3{1, -1, 0})});  // touches one edge: L = 0
     EXPECT_EQ(corner.alpha, 0.0);
-    EXPECT_GT(r.trace({{-1, 0, 2}, {1, 0, 0}}).alpha, 0.9);                    // lies in a face: sees it
-    EXPECT_GT(r.trace({{2, 2, 2}, {1, 0, 0}}).alpha, 0.9);                     // starts inside: t_near = 0
+    EXPECT_GT(r.trace({{-1, 0, 2}, {1, 0, 0}}).alpha, 0.9);  // lies in a face: sees it
+    EXPECT_GT(r.trace({{2, 2, 2}, {1, 0, 0}}).alpha, 0.9);   // starts inside: t_near = 0
 }
 
 TEST(Integrators, PreclassifiedGridsRenderWithEveryIntegrator) {
@@ -241,7 +249,8 @@ TEST(Integrators, PreclassifiedGridsRenderWithEveryIntegrator) {
     auto mip = settings(IntegratorKind::alpha);
     mip.model = Model::mip;
     EXPECT_THROW(Renderer(density, color, mip), Error);
-    EXPECT_THROW(Renderer(density, density, settings(IntegratorKind::alpha)), Error);  // color needs 3 components
+    EXPECT_THROW(Renderer(density, density, settings(IntegratorKind::alpha)),
+                 Error);  // color needs 3 components
 }
 
 TEST(Integrators, MipOfOneBrightVoxelIsItsColor) {
@@ -257,4 +266,3 @@ TEST(Integrators, MipOfOneBrightVoxelIsItsColor) {
     EXPECT_DOUBLE_EQ(r.radiance[2], 0.8);
     EXPECT_DOUBLE_EQ(r.alpha, 1.0);
 }
-

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "fathom/render.h"
+
 #include "integrate/preintegrated.h"
 #include "synthetic.h"
 
@@ -17,8 +18,10 @@ namespace {
 TransferFunction spiky_tf() {
     TransferFunction tf;
     tf.alpha_kind = TransferFunction::Alpha::extinction;
-    tf.alpha_points = {{0.0, 0.0}, {0.3, 0.2}, {0.45, 0.4}, {0.45, 2.5}, {0.5, 0.3}, {0.51, 6.0}, {0.52, 0.3}, {1.0, 0.8}};
-    tf.color_points = {{0.0, {1.0, 0.1, 0.0}}, {0.5, {0.2, 1.0, 0.3}}, {0.5, {0.9, 0.9, 0.9}}, {1.0, {0.0, 0.3, 1.0}}};
+    tf.alpha_points = {{0.0, 0.0}, {0.3, 0.2},  {0.45, 0.4}, {0.45, 2.5},
+                       {0.5, 0.3}, {0.51, 6.0}, {0.52, 0.3}, {1.0, 0.8}};
+    tf.color_points = {
+        {0.0, {1.0, 0.1, 0.0}}, {0.5, {0.2, 1.0, 0.3}}, {0.5, {0.9, 0.9, 0.9}}, {1.0, {0.0, 0.3, 1.0}}};
     return tf;
 }
 
@@ -45,8 +48,9 @@ TEST(Preintegrated, SegmentIntegralsMatchBruteForce) {
     const Classifier c(spiky_tf(), 1.0);
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> v(-0.1, 1.1), d(0.05, 4.0);
-    std::vector<std::array<double, 2>> pairs = {{0.2, 0.8}, {0.8, 0.2}, {0.4, 0.4}, {0.44, 0.46}, {0.46, 0.44},
-                                                {0.505, 0.515}, {0.45, 0.45}, {0.0, 1.0}, {1.0, 0.0}};
+    std::vector<std::array<double, 2>> pairs = {{0.2, 0.8},   {0.8, 0.2},   {0.4, 0.4},
+                                                {0.44, 0.46}, {0.46, 0.44}, {0.505, 0.515},
+                                                {0.45, 0.45}, {0.0, 1.0},   {1.0, 0.0}};
     for (int i = 0; i < 12; ++i) pairs.push_back({v(rng), v(rng)});
     for (const auto& [vf, vb] : pairs) {
         const double delta = d(rng);

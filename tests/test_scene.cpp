@@ -6,6 +6,7 @@
 #include "fathom/error.h"
 #include "fathom/io.h"
 #include "fathom/scene.h"
+
 #include "test_util.h"
 
 using namespace fathom;
@@ -13,7 +14,9 @@ using fathom::test::TempDir;
 
 namespace {
 
-void write(const std::filesystem::path& p, const std::string& text) { std::ofstream(p) << text; }
+void write(const std::filesystem::path& p, const std::string& text) {
+    std::ofstream(p) << text;
+}
 
 // An 4×3×2 uint8 raw file with values 0..23.
 std::filesystem::path raw_volume(const TempDir& d) {
@@ -44,7 +47,8 @@ TEST(Scene, RawVolumeWithRelativePathAndPlacement) {
     TempDir d;
     raw_volume(d);
     write(d / "scene.json", scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8",
-        "spacing": [0.5, 1, 2], "origin": [1, 2, 3]})", R"(, "render": {"width": 8, "height": 6, "integrator": "riemann",
+        "spacing": [0.5, 1, 2], "origin": [1, 2, 3]})",
+                                       R"(, "render": {"width": 8, "height": 6, "integrator": "riemann",
         "sample_point": "mid", "step": 0.25, "step_unit": "world", "order": "back-to-front", "termination": 0,
         "background": [0.1, 0.2, 0.3], "model": "absorption"}, "camera": {"orbit": {"azimuth": 10, "elevation": 5}})"));
     const Scene sc = load_scene(d / "scene.json");
@@ -66,7 +70,8 @@ TEST(Scene, RawVolumeWithRelativePathAndPlacement) {
 TEST(Scene, DefaultsFollowTheContract) {
     TempDir d;
     raw_volume(d);
-    const Scene sc = parse_scene(scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path(), "s");
+    const Scene sc =
+        parse_scene(scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path(), "s");
     EXPECT_EQ(sc.settings.width, 512);
     EXPECT_EQ(sc.settings.height, 512);
     EXPECT_EQ(sc.settings.model, Model::emission_absorption);
@@ -77,9 +82,11 @@ TEST(Scene, DefaultsFollowTheContract) {
     s.model = Model::absorption;  // white under absorption, also when the model comes later
     EXPECT_EQ(s.background_radiance(), (Rgb{1, 1, 1}));
     // orthographic height defaults to 2R
-    const Scene o = parse_scene(scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})",
-                                           R"(, "camera": {"projection": "orthographic", "position": [0, -9, 0], "look_at": [0, 0, 0]})"),
-                                d.path(), "s");
+    const Scene o = parse_scene(
+        scene_with(
+            R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})",
+            R"(, "camera": {"projection": "orthographic", "position": [0, -9, 0], "look_at": [0, 0, 0]})"),
+        d.path(), "s");
     EXPECT_NEAR(o.camera.height, 2 * volume_bounds(o.volume).radius, 1e-12);
     EXPECT_NEAR(o.camera.up.z, 1.0, 1e-12);  // up defaults to +z
 }
@@ -88,11 +95,13 @@ TEST(Scene, PresetAndTfFileAndPreclassified) {
     TempDir d;
     raw_volume(d);
     const Scene p = parse_scene(R"({"format": "fathom-scene/1", "volume": {"path": "v.raw", "dims": [4, 3, 2],
-        "dtype": "uint8"}, "transfer_function": {"preset": "ct-bone"}})", d.path(), "s");
+        "dtype": "uint8"}, "transfer_function": {"preset": "ct-bone"}})",
+                                d.path(), "s");
     EXPECT_EQ(p.tf.name, "ct-bone");
     write(d / "tf.json", R"({"format": "fathom-tf/1", "color": [[0, 1, 1, 1]], "extinction": [[0, 2]]})");
     const Scene t = parse_scene(R"({"format": "fathom-scene/1", "volume": {"path": "v.raw", "dims": [4, 3, 2],
-        "dtype": "uint8"}, "transfer_function": {"path": "tf.json"}})", d.path(), "s");
+        "dtype": "uint8"}, "transfer_function": {"path": "tf.json"}})",
+                                d.path(), "s");
     EXPECT_EQ(t.tf.alpha_kind, TransferFunction::Alpha::extinction);
 }
 
@@ -109,12 +118,16 @@ TEST(Scene, ErrorsNameTheSceneAndTheProblem) {
         {scene_with(vol, R"(, "render": {"integrator": "simpson"})"), "unknown integrator 'simpson'"},
         {scene_with(vol, R"(, "render": {"background": "pink"})"), "background"},
         {scene_with(vol, R"(, "camera": {"orbit": {"azimuth": 3}})"), "elevation"},
-        {scene_with(vol, R"(, "camera": {"orbit": {"azimuth": 3, "elevation": 1}, "position": [1, 2, 3]})"), "exactly one"},
-        {scene_with(vol, R"(, "camera": {"camera_to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]})"),
+        {scene_with(vol, R"(, "camera": {"orbit": {"azimuth": 3, "elevation": 1}, "position": [1, 2, 3]})"),
+         "exactly one"},
+        {scene_with(
+             vol,
+             R"(, "camera": {"camera_to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]})"),
          "orthonormal"},
         {scene_with(vol, R"(, "camera": {"position": [1, 1, 1], "look_at": [1, 1, 1]})"), "same point"},
         {scene_with(R"({"path": "v.raw", "dims": [4, 3, 2]})"), "dtype"},
-        {scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8", "spacing": [1, 0, 1]})"), "spacing"},
+        {scene_with(R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8", "spacing": [1, 0, 1]})"),
+         "spacing"},
         {R"({"format": "fathom-scene/2"})", "fathom-scene/1"},
         {R"({"format": "fathom-scene/1", "volume": )" + vol + "}", "transfer_function"},
         {R"({"format": "fathom-scene/1", "volume": {"density": "a.nrrd"}})", "both"},
@@ -126,7 +139,8 @@ TEST(Scene, ErrorsNameTheSceneAndTheProblem) {
         EXPECT_NE(msg.find(needle), std::string::npos) << text << " -> " << msg;
     }
     // a missing volume file names that file
-    const std::string missing = error_of(scene_with(R"({"path": "nothere.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path());
+    const std::string missing =
+        error_of(scene_with(R"({"path": "nothere.raw", "dims": [4, 3, 2], "dtype": "uint8"})"), d.path());
     EXPECT_NE(missing.find("nothere.raw"), std::string::npos) << missing;
 }
 

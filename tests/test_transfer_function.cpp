@@ -9,7 +9,9 @@ using namespace fathom;
 
 namespace {
 
-TransferFunction parse(const std::string& text) { return TransferFunction::from_json_text(text, "tf.json"); }
+TransferFunction parse(const std::string& text) {
+    return TransferFunction::from_json_text(text, "tf.json");
+}
 
 std::string error_of(const std::string& text) {
     try {
@@ -27,12 +29,12 @@ TEST(TransferFunction, SigmaIsPiecewiseLinearWithJumpsAndClamping) {
         "color": [[0, 1, 0, 0], [10, 0, 0, 1]],
         "extinction": [[0, 0], [5, 1], [5, 3], [10, 4]]})");
     const Classifier c(tf, 1.0);
-    EXPECT_DOUBLE_EQ(c.sigma(-3), 0.0);     // below the first point: its value holds
-    EXPECT_DOUBLE_EQ(c.sigma(2.5), 0.5);    // linear
+    EXPECT_DOUBLE_EQ(c.sigma(-3), 0.0);   // below the first point: its value holds
+    EXPECT_DOUBLE_EQ(c.sigma(2.5), 0.5);  // linear
     EXPECT_DOUBLE_EQ(c.sigma(4.999999), 0.9999998);
-    EXPECT_DOUBLE_EQ(c.sigma(5), 3.0);      // at the jump the last point holds
+    EXPECT_DOUBLE_EQ(c.sigma(5), 3.0);  // at the jump the last point holds
     EXPECT_DOUBLE_EQ(c.sigma(7.5), 3.5);
-    EXPECT_DOUBLE_EQ(c.sigma(100), 4.0);    // beyond the end
+    EXPECT_DOUBLE_EQ(c.sigma(100), 4.0);  // beyond the end
     EXPECT_DOUBLE_EQ(c.color(5)[0], 0.5);
     EXPECT_DOUBLE_EQ(c.color(5)[2], 0.5);
     // particle model: g = σ·c
@@ -54,7 +56,8 @@ TEST(TransferFunction, OpacityConvertsPerPointWithUnitDistance) {
 }
 
 TEST(TransferFunction, AssociatedEmissionIsTheSource) {
-    const auto tf = parse(R"({"format": "fathom-tf/1", "emission": [[0, 2, 3, 4]], "extinction": [[0, 10]]})");
+    const auto tf =
+        parse(R"({"format": "fathom-tf/1", "emission": [[0, 2, 3, 4]], "extinction": [[0, 10]]})");
     const Classifier c(tf, 1.0);
     EXPECT_TRUE(c.associated());
     EXPECT_DOUBLE_EQ(c.source(0)[1], 3.0);
@@ -81,12 +84,15 @@ TEST(TransferFunction, EveryContractErrorIsReportedWithTheFile) {
         {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "extinction": [[0, -1]]})", "negative"},
         {R"({"format": "fathom-tf/1", "color": [[0, 1, -1, 1]], "opacity": [[0, 1]]})", "negative"},
         {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": []})", "empty"},
-        {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": [[0, 1]], "gamma": 2})", "unknown key 'gamma'"},
+        {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": [[0, 1]], "gamma": 2})",
+         "unknown key 'gamma'"},
         {R"({"format": "fathom-tf/2", )" + ok_color + R"(, "opacity": [[0, 1]]})", "fathom-tf/1"},
         {R"({)" + ok_color + R"(, "opacity": [[0, 1]]})", "missing 'format'"},
-        {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "extinction": [[0, 1]], "opacity_unit_distance": 1})",
+        {R"({"format": "fathom-tf/1", )" + ok_color +
+             R"(, "extinction": [[0, 1]], "opacity_unit_distance": 1})",
          "opacity_unit_distance"},
-        {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": [[0, 1]], "opacity_unit_distance": 0})", "> 0"},
+        {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": [[0, 1]], "opacity_unit_distance": 0})",
+         "> 0"},
         {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": [[0, 1, 2]]})", "expected 2 numbers"},
         {R"({"format": "fathom-tf/1", )" + ok_color + R"(, "opacity": [[0, "a"]]})", "expected a number"},
         {R"({"format": "fathom-tf/1", )" + ok_color + "}", "exactly one of 'opacity'"},

@@ -1,23 +1,29 @@
 // Helpers shared by the tests: paths to the shared data and the CLI, temp dirs.
 #pragma once
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <string>
-
-#include <unistd.h>
 
 #include <gtest/gtest.h>
 
 namespace fathom::test {
 
-inline std::filesystem::path shared_data() { return FATHOM_SHARED_DATA; }
-inline std::filesystem::path source_dir() { return FATHOM_SOURCE_DIR; }
-inline std::string cli() { return FATHOM_CLI; }
+inline std::filesystem::path shared_data() {
+    return FATHOM_SHARED_DATA;
+}
+inline std::filesystem::path source_dir() {
+    return FATHOM_SOURCE_DIR;
+}
+inline std::string cli() {
+    return FATHOM_CLI;
+}
 
 /// Skips the current test when the shared data set is not beside the clone.
-#define FATHOM_REQUIRE_SHARED(rel)                                                      \
-    do {                                                                                \
-        if (!std::filesystem::exists(::fathom::test::shared_data() / (rel)))           \
+#define FATHOM_REQUIRE_SHARED(rel)                                                                \
+    do {                                                                                          \
+        if (!std::filesystem::exists(::fathom::test::shared_data() / (rel)))                      \
             GTEST_SKIP() << "shared data not found: " << (::fathom::test::shared_data() / (rel)); \
     } while (0)
 

@@ -4,8 +4,9 @@
 #include <exception>
 #include <new>
 
-#include "commands.h"
 #include "fathom/error.h"
+
+#include "commands.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"fathom: direct volume rendering of 3D scalar fields"};

@@ -12,10 +12,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "commands.h"
 #include "fathom/error.h"
 #include "fathom/io.h"
 #include "fathom/scene.h"
+
+#include "commands.h"
 
 namespace fathom::cli {
 namespace {
@@ -147,25 +148,35 @@ void run_render(const RenderArgs& a) {
 }  // namespace
 
 void add_render_command(CLI::App& app) {
-    auto* cmd = app.add_subcommand("render", "Render a scene file (or a volume with a transfer function) to an image");
+    auto* cmd = app.add_subcommand("render",
+                                   "Render a scene file (or a volume with a transfer function) to an image");
     auto a = std::make_shared<RenderArgs>();
     cmd->add_option("scene", a->scene, "Scene file (fathom-scene/1 JSON)");
-    cmd->add_option("-o,--output", a->output, "Output image: .pfm (linear float), .png (sRGB 8-bit) or .exr")->required();
+    cmd->add_option("-o,--output", a->output, "Output image: .pfm (linear float), .png (sRGB 8-bit) or .exr")
+        ->required();
     cmd->add_option("--volume", a->volume, "Volume file (no-scene form)");
     cmd->add_option("--tf", a->tf, "Transfer function file (fathom-tf/1 JSON), with --volume");
-    cmd->add_option("--preset", a->preset, "Transfer function preset, with --volume: ct-bone, ct-skin, ct-soft-tissue, mr-default, grayscale");
-    cmd->add_option("--orbit", a->orbit, "Orbit camera AZ,EL[,DIST] in degrees (distance in half box diagonals, default 3), with --volume");
+    cmd->add_option(
+        "--preset", a->preset,
+        "Transfer function preset, with --volume: ct-bone, ct-skin, ct-soft-tissue, mr-default, grayscale");
+    cmd->add_option(
+        "--orbit", a->orbit,
+        "Orbit camera AZ,EL[,DIST] in degrees (distance in half box diagonals, default 3), with --volume");
     a->o_width = cmd->add_option("--width", a->width, "Image width in pixels (default 512)");
     a->o_height = cmd->add_option("--height", a->height, "Image height in pixels (default 512)");
     cmd->add_option("--model", a->model, "emission-absorption (default), absorption, emission or mip");
     cmd->add_option("--integrator", a->integrator, "alpha (default), riemann or reference");
-    a->o_step = cmd->add_option("--step", a->step, "Step: in voxels (smallest spacing) by default, see --step-unit");
-    cmd->add_option("--step-unit", a->step_unit, "voxel (default) or world")->check(CLI::IsMember({"voxel", "world"}));
+    a->o_step =
+        cmd->add_option("--step", a->step, "Step: in voxels (smallest spacing) by default, see --step-unit");
+    cmd->add_option("--step-unit", a->step_unit, "voxel (default) or world")
+        ->check(CLI::IsMember({"voxel", "world"}));
     cmd->add_option("--sample-point", a->sample_point, "near (default) or mid");
     cmd->add_option("--order", a->order, "front-to-back (default) or back-to-front");
-    a->o_termination = cmd->add_option("--termination", a->termination, "Early-termination threshold on T (default 0.001; 0 never stops)");
+    a->o_termination = cmd->add_option("--termination", a->termination,
+                                       "Early-termination threshold on T (default 0.001; 0 never stops)");
     cmd->add_option("--background", a->background, "R,G,B or 'transparent'");
-    a->o_threads = cmd->add_option("--threads", a->threads, "Threads (default: all cores)")->check(CLI::NonNegativeNumber);
+    a->o_threads = cmd->add_option("--threads", a->threads, "Threads (default: all cores)")
+                       ->check(CLI::NonNegativeNumber);
     cmd->add_flag("-q,--quiet", a->quiet, "No progress indicator");
     cmd->callback([a] { run_render(*a); });
 }

@@ -21,9 +21,9 @@ class Camera {
 public:
     Projection projection = Projection::perspective;
     Vec3 position{0, 0, 0};
-    Vec3 forward{0, 0, -1};  // f
-    Vec3 right{1, 0, 0};     // r
-    Vec3 up{0, 1, 0};        // u
+    Vec3 forward{0, 0, -1};   // f
+    Vec3 right{1, 0, 0};      // r
+    Vec3 up{0, 1, 0};         // u
     double fov_y_deg = 30.0;  // perspective
     double height = 2.0;      // orthographic: world units seen vertically
 

@@ -12,7 +12,8 @@ class Error : public std::runtime_error {
 public:
     Error(std::string subject, std::string reason)
         : std::runtime_error(subject.empty() ? reason : subject + ": " + reason),
-          subject_(std::move(subject)), reason_(std::move(reason)) {}
+          subject_(std::move(subject)),
+          reason_(std::move(reason)) {}
 
     /// The file (or object) the error is about; may be empty.
     [[nodiscard]] const std::string& subject() const noexcept { return subject_; }

@@ -12,9 +12,10 @@
 namespace fathom {
 
 struct PreintegrationTable {
-    int size = 0;             // size × size entries
-    double v_lo = 0, v_hi = 1;  // entry (i, j): v_front = v_lo + i·(v_hi − v_lo)/(size − 1), v_back likewise with j
-    double delta = 1;         // segment length (world units)
+    int size = 0;  // size × size entries
+    double v_lo = 0,
+           v_hi = 1;  // entry (i, j): v_front = v_lo + i·(v_hi − v_lo)/(size − 1), v_back likewise with j
+    double delta = 1;  // segment length (world units)
     bool self_attenuation = true;
     std::vector<float> alpha;  // size², index i + size·j
     std::vector<float> color;  // size² × 3: C (radiance, premultiplied by the segment's coverage)

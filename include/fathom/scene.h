@@ -16,8 +16,8 @@
 namespace fathom {
 
 struct Scene {
-    std::string name;  // the scene file (for messages)
-    Volume volume;     // the scalar volume, or the density grid when pre-classified
+    std::string name;             // the scene file (for messages)
+    Volume volume;                // the scalar volume, or the density grid when pre-classified
     std::optional<Volume> color;  // set for pre-classified grids
     TransferFunction tf;          // unused when pre-classified
     Camera camera;
@@ -33,6 +33,7 @@ struct Scene {
 Scene load_scene(const std::filesystem::path& path);
 /// Parses scene JSON text; relative paths resolve against base_dir and
 /// errors name `subject`.
-Scene parse_scene(std::string_view json_text, const std::filesystem::path& base_dir, const std::string& subject);
+Scene parse_scene(std::string_view json_text, const std::filesystem::path& base_dir,
+                  const std::string& subject);
 
 }  // namespace fathom

@@ -47,9 +47,13 @@ public:
     [[nodiscard]] std::byte* bytes() { return bytes_.data(); }
     [[nodiscard]] const std::byte* bytes() const { return bytes_.data(); }
     template <class T>
-    [[nodiscard]] T* data() { return reinterpret_cast<T*>(bytes_.data()); }
+    [[nodiscard]] T* data() {
+        return reinterpret_cast<T*>(bytes_.data());
+    }
     template <class T>
-    [[nodiscard]] const T* data() const { return reinterpret_cast<const T*>(bytes_.data()); }
+    [[nodiscard]] const T* data() const {
+        return reinterpret_cast<const T*>(bytes_.data());
+    }
 
     /// Sample (i, j, k), component c, converted to double (no bounds check).
     [[nodiscard]] double value(std::int64_t i, std::int64_t j, std::int64_t k, int c = 0) const;
@@ -92,14 +96,22 @@ private:
 template <class F>
 decltype(auto) visit_dtype(DType t, F&& f) {
     switch (t) {
-        case DType::u8: return f(static_cast<std::uint8_t*>(nullptr));
-        case DType::i8: return f(static_cast<std::int8_t*>(nullptr));
-        case DType::u16: return f(static_cast<std::uint16_t*>(nullptr));
-        case DType::i16: return f(static_cast<std::int16_t*>(nullptr));
-        case DType::u32: return f(static_cast<std::uint32_t*>(nullptr));
-        case DType::i32: return f(static_cast<std::int32_t*>(nullptr));
-        case DType::f32: return f(static_cast<float*>(nullptr));
-        case DType::f64: break;
+        case DType::u8:
+            return f(static_cast<std::uint8_t*>(nullptr));
+        case DType::i8:
+            return f(static_cast<std::int8_t*>(nullptr));
+        case DType::u16:
+            return f(static_cast<std::uint16_t*>(nullptr));
+        case DType::i16:
+            return f(static_cast<std::int16_t*>(nullptr));
+        case DType::u32:
+            return f(static_cast<std::uint32_t*>(nullptr));
+        case DType::i32:
+            return f(static_cast<std::int32_t*>(nullptr));
+        case DType::f32:
+            return f(static_cast<float*>(nullptr));
+        case DType::f64:
+            break;
     }
     return f(static_cast<double*>(nullptr));
 }

@@ -20,8 +20,8 @@ RayResult integrate_alpha(const Medium& medium, const RaySpan& span, const Rende
         const double t = span.t_near + (static_cast<double>(i - 1) + offset) * delta;  // eq. (8)
         MediumSample m = medium.at(span.at(t));
         apply_model<M>(m.sigma, m.source);
-        const double alpha = -std::expm1(-m.sigma * delta);               // α_i = 1 − e^{−σδ}
-        const double weight = m.sigma > 0.0 ? alpha / m.sigma : delta;   // (1 − e^{−σδ})/σ
+        const double alpha = -std::expm1(-m.sigma * delta);             // α_i = 1 − e^{−σδ}
+        const double weight = m.sigma > 0.0 ? alpha / m.sigma : delta;  // (1 − e^{−σδ})/σ
         Segment seg{std::exp(-m.sigma * delta), {}};
         for (int c = 0; c < 3; ++c) seg.radiance[c] = m.source[c] * weight;
         return seg;

@@ -12,7 +12,8 @@ constexpr std::array<double, 6> kW{0.085662246189585178, 0.18038078652406930, 0.
 constexpr double kMaxDepth = 40.0;
 
 Rgb eval(const Quadratic& g, double u) {
-    return {g.a[0] + u * (g.b[0] + u * g.c[0]), g.a[1] + u * (g.b[1] + u * g.c[1]), g.a[2] + u * (g.b[2] + u * g.c[2])};
+    return {g.a[0] + u * (g.b[0] + u * g.c[0]), g.a[1] + u * (g.b[1] + u * g.c[1]),
+            g.a[2] + u * (g.b[2] + u * g.c[2])};
 }
 
 }  // namespace

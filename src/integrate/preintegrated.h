@@ -77,7 +77,8 @@ Segment preintegrate_scalar(const Classifier& tf, double vf, double vb, double d
         const std::size_t ps = sig.piece(vm), pc = col.piece(vm);
         double s0 = sig.on_piece(ps, v0)[0], s1 = sig.on_piece(ps, v1)[0];
         const Rgb c0 = col.on_piece(pc, v0), c1 = col.on_piece(pc, v1);
-        preint::Quadratic g = tf.associated() ? preint::emission_source(c0, c1) : preint::particle_source(s0, s1, c0, c1);
+        preint::Quadratic g =
+            tf.associated() ? preint::emission_source(c0, c1) : preint::particle_source(s0, s1, c0, c1);
         if constexpr (M == Model::absorption) g = {};
         if constexpr (M == Model::emission) s0 = s1 = 0.0;
         const auto r = preint::integrate_piece((l1 - l0) * delta, s0, s1, g, full);
@@ -89,7 +90,8 @@ Segment preintegrate_scalar(const Classifier& tf, double vf, double vb, double d
     const auto& knots = tf.breakpoints();
     double l = 0.0;
     if (vf < vb) {
-        for (auto it = std::upper_bound(knots.begin(), knots.end(), vf); it != knots.end() && *it < vb; ++it) {
+        for (auto it = std::upper_bound(knots.begin(), knots.end(), vf); it != knots.end() && *it < vb;
+             ++it) {
             const double ln = (*it - vf) / (vb - vf);
             piece(l, ln);
             l = ln;
@@ -121,8 +123,8 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
 /// The integrator: samples the n + 1 segment ends once each (a two-slot
 /// cache serves both orders) and composites the segments.
 template <Model M, class Medium>
-RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s, double h,
-                                  const Rgb& bg, bool full) {
+RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
+                                  double h, const Rgb& bg, bool full) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
     using End = decltype(medium.end_sample(Vec3{}));

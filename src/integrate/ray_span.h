@@ -21,7 +21,8 @@ struct RaySpan {
 
 /// Intersects the ray (index-space origin p0, direction dp) with the closed
 /// box, keeping t ≥ 0. Returns false when it misses or only grazes (L = 0).
-inline bool intersect_box(const Vec3& p0, const Vec3& dp, const std::array<std::int64_t, 3>& dims, RaySpan& out) {
+inline bool intersect_box(const Vec3& p0, const Vec3& dp, const std::array<std::int64_t, 3>& dims,
+                          RaySpan& out) {
     double t0 = 0.0, t1 = INFINITY;
     for (int a = 0; a < 3; ++a) {
         const double hi = static_cast<double>(dims[a] - 1);

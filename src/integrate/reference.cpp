@@ -32,8 +32,10 @@ std::vector<double> Cubic::extrema() const {
         const double disc = B * B - 4 * A * C;
         if (disc >= 0) {
             const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-            if (q != 0.0) out.push_back(q / A), out.push_back(C / q);
-            else out.push_back(0.0);
+            if (q != 0.0)
+                out.push_back(q / A), out.push_back(C / q);
+            else
+                out.push_back(0.0);
         }
     }
     std::vector<double> in;
@@ -47,8 +49,10 @@ double solve_monotone(const Cubic& c, double s0, double s1, double target) {
     const bool increasing = c(s1) > c(s0);
     for (int it = 0; it < 60 && s1 - s0 > 1e-16; ++it) {
         const double m = 0.5 * (s0 + s1);
-        if ((c(m) < target) == increasing) s0 = m;
-        else s1 = m;
+        if ((c(m) < target) == increasing)
+            s0 = m;
+        else
+            s1 = m;
     }
     return 0.5 * (s0 + s1);
 }

@@ -53,7 +53,8 @@ inline constexpr std::array<double, 8> kGlW{0.1012285362903763, 0.22238103445337
 template <Model M, class Medium>
 class ReferenceIntegrator {
 public:
-    ReferenceIntegrator(const Medium& medium, const RaySpan& span, double tolerance, const std::vector<double>* tf_breaks)
+    ReferenceIntegrator(const Medium& medium, const RaySpan& span, double tolerance,
+                        const std::vector<double>* tf_breaks)
         : medium_(medium), span_(span), tol_(tolerance), breaks_(tf_breaks) {}
 
     RayResult run(const Rgb& bg) {
@@ -116,7 +117,8 @@ private:
         }
         std::sort(cuts.begin(), cuts.end());
         for (std::size_t i = 0; i + 1 < cuts.size(); ++i)
-            if (cuts[i + 1] > cuts[i]) integrate_piece(ta + cuts[i] * (tb - ta), ta + cuts[i + 1] * (tb - ta));
+            if (cuts[i + 1] > cuts[i])
+                integrate_piece(ta + cuts[i] * (tb - ta), ta + cuts[i + 1] * (tb - ta));
     }
 
     // A smooth piece [a, b]: σ_a is a cubic there.

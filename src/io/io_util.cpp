@@ -1,7 +1,5 @@
 #include "io/io_util.h"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <bit>
 #include <cctype>
@@ -12,6 +10,8 @@
 #include <limits>
 #include <system_error>
 #include <type_traits>
+
+#include <zlib.h>
 
 #include "fathom/error.h"
 #include "fathom/log.h"
@@ -33,7 +33,9 @@ std::string to_lower(std::string_view s) {
     return r;
 }
 
-bool iequals(std::string_view a, std::string_view b) { return a.size() == b.size() && to_lower(a) == to_lower(b); }
+bool iequals(std::string_view a, std::string_view b) {
+    return a.size() == b.size() && to_lower(a) == to_lower(b);
+}
 
 std::vector<std::string_view> split_ws(std::string_view s) {
     std::vector<std::string_view> out;
@@ -105,14 +107,15 @@ std::vector<double> field_doubles(const std::string& subject, std::string_view f
     return out;
 }
 
-std::vector<std::int64_t> field_ints(const std::string& subject, std::string_view field, std::string_view value,
-                                     std::size_t n, std::int64_t min_value) {
+std::vector<std::int64_t> field_ints(const std::string& subject, std::string_view field,
+                                     std::string_view value, std::size_t n, std::int64_t min_value) {
     const auto tokens = split_ws(value);
     std::vector<std::int64_t> out;
     for (auto t : tokens)
         if (auto v = parse_int(t); v && *v >= min_value) out.push_back(*v);
     if (tokens.size() != n || out.size() != n) {
-        const char* what = min_value > 0 ? "positive integer" : (min_value == 0 ? "non-negative integer" : "integer");
+        const char* what =
+            min_value > 0 ? "positive integer" : (min_value == 0 ? "non-negative integer" : "integer");
         bad_field(subject, field, count_of(n, what), value);
     }
     return out;
@@ -156,7 +159,8 @@ public:
     }
     void seek(std::uint64_t offset) {
         stream_.seekg(static_cast<std::streamoff>(offset), std::ios::beg);
-        if (!stream_) throw Error(subject_, "cannot seek to byte " + std::to_string(offset) + " of " + path_.string());
+        if (!stream_)
+            throw Error(subject_, "cannot seek to byte " + std::to_string(offset) + " of " + path_.string());
     }
     /// Reads up to n bytes; returns how many were read (fewer only at the end).
     std::size_t read(void* dst, std::size_t n) {
@@ -177,7 +181,8 @@ private:
 };
 }  // namespace
 
-std::string read_prefix(const std::string& subject, const std::filesystem::path& file, std::size_t max_bytes) {
+std::string read_prefix(const std::string& subject, const std::filesystem::path& file,
+                        std::size_t max_bytes) {
     const std::uint64_t size = file_size_checked(subject, file, "file");
     std::string text(static_cast<std::size_t>(std::min<std::uint64_t>(size, max_bytes)), '\0');
     InputFile in(subject, file);
@@ -204,13 +209,24 @@ PatternSpec parse_pattern(const std::string& subject, std::string_view field, st
     int conversions = 0;
     std::string* out = &spec.prefix;
     for (std::size_t i = 0; i < pattern.size(); ++i) {
-        if (pattern[i] != '%') { *out += pattern[i]; continue; }
-        if (i + 1 < pattern.size() && pattern[i + 1] == '%') { *out += '%'; ++i; continue; }
+        if (pattern[i] != '%') {
+            *out += pattern[i];
+            continue;
+        }
+        if (i + 1 < pattern.size() && pattern[i + 1] == '%') {
+            *out += '%';
+            ++i;
+            continue;
+        }
         std::size_t j = i + 1;
-        if (j < pattern.size() && pattern[j] == '0') { spec.zero_pad = true; ++j; }
+        if (j < pattern.size() && pattern[j] == '0') {
+            spec.zero_pad = true;
+            ++j;
+        }
         while (j < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[j])) && spec.width < 100)
             spec.width = spec.width * 10 + (pattern[j++] - '0');
-        if (j >= pattern.size() || (pattern[j] != 'd' && pattern[j] != 'i' && pattern[j] != 'u') || spec.width > 32)
+        if (j >= pattern.size() || (pattern[j] != 'd' && pattern[j] != 'i' && pattern[j] != 'u') ||
+            spec.width > 32)
             bad_field(subject, field, "a file name pattern with one %d conversion", pattern);
         ++conversions;
         out = &spec.suffix;
@@ -233,8 +249,9 @@ std::string format_index(const PatternSpec& spec, std::int64_t v) {
 }  // namespace
 
 std::vector<std::filesystem::path> expand_pattern(const std::string& subject, std::string_view field,
-                                                  const std::filesystem::path& header, std::string_view pattern,
-                                                  std::int64_t min, std::int64_t max, std::int64_t step,
+                                                  const std::filesystem::path& header,
+                                                  std::string_view pattern, std::int64_t min,
+                                                  std::int64_t max, std::int64_t step,
                                                   std::uint64_t expected) {
     const PatternSpec spec = parse_pattern(subject, field, pattern);
     constexpr std::int64_t kLimit = std::int64_t{1} << 40;
@@ -244,14 +261,16 @@ std::vector<std::filesystem::path> expand_pattern(const std::string& subject, st
                                  " to " + std::to_string(max) + " in steps of " + std::to_string(step));
     const auto count = static_cast<std::uint64_t>((max - min) / step) + 1;
     if (count > kMaxDataFiles)
-        throw Error(subject, "field '" + std::string(field) + "': the pattern names " + std::to_string(count) +
-                                 " files, more than the " + std::to_string(kMaxDataFiles) + " supported");
+        throw Error(subject, "field '" + std::string(field) + "': the pattern names " +
+                                 std::to_string(count) + " files, more than the " +
+                                 std::to_string(kMaxDataFiles) + " supported");
     if (count != expected)
-        throw Error(subject, "field '" + std::string(field) + "': the pattern names " + std::to_string(count) +
-                                 " files, expected " + std::to_string(expected));
+        throw Error(subject, "field '" + std::string(field) + "': the pattern names " +
+                                 std::to_string(count) + " files, expected " + std::to_string(expected));
     std::vector<std::filesystem::path> files;
     for (std::uint64_t n = 0; n < count; ++n)
-        files.push_back(resolve_beside(header, format_index(spec, min + static_cast<std::int64_t>(n) * step)));
+        files.push_back(
+            resolve_beside(header, format_index(spec, min + static_cast<std::int64_t>(n) * step)));
     return files;
 }
 
@@ -287,14 +306,17 @@ std::uint64_t grid_bytes(const std::string& subject, std::string_view field, con
     bool too_big = false;
     for (auto d : shape.dims) {
         approx *= static_cast<double>(d);
-        if (too_big || bytes > kMaxVolumeBytes / static_cast<std::uint64_t>(d)) too_big = true;
-        else bytes *= static_cast<std::uint64_t>(d);
+        if (too_big || bytes > kMaxVolumeBytes / static_cast<std::uint64_t>(d))
+            too_big = true;
+        else
+            bytes *= static_cast<std::uint64_t>(d);
     }
     if (too_big)
-        throw Error(subject, f + std::to_string(shape.dims[0]) + "x" + std::to_string(shape.dims[1]) + "x" +
-                                 std::to_string(shape.dims[2]) + " " + std::string(dtype_name(shape.dtype)) +
-                                 " needs " + std::to_string(static_cast<std::uint64_t>(approx / 1073741824.0)) +
-                                 " GiB, more than the " + std::to_string(kMaxVolumeBytes >> 30) + " GiB limit");
+        throw Error(subject,
+                    f + std::to_string(shape.dims[0]) + "x" + std::to_string(shape.dims[1]) + "x" +
+                        std::to_string(shape.dims[2]) + " " + std::string(dtype_name(shape.dtype)) +
+                        " needs " + std::to_string(static_cast<std::uint64_t>(approx / 1073741824.0)) +
+                        " GiB, more than the " + std::to_string(kMaxVolumeBytes >> 30) + " GiB limit");
     return bytes;
 }
 
@@ -308,9 +330,15 @@ void swap_each(std::span<std::byte> bytes) {
 
 void swap_bytes(std::span<std::byte> bytes, std::size_t sample_size) {
     switch (sample_size) {
-        case 2: swap_each<2>(bytes); break;
-        case 4: swap_each<4>(bytes); break;
-        case 8: swap_each<8>(bytes); break;
+        case 2:
+            swap_each<2>(bytes);
+            break;
+        case 4:
+            swap_each<4>(bytes);
+            break;
+        case 8:
+            swap_each<8>(bytes);
+            break;
         default:
             for (std::size_t i = 0; sample_size > 1 && i + sample_size <= bytes.size(); i += sample_size)
                 std::reverse(bytes.begin() + static_cast<std::ptrdiff_t>(i),
@@ -339,18 +367,21 @@ namespace {
 /// One file's share of the data, located and checked before any allocation.
 struct Piece {
     const DataFile* file = nullptr;
-    std::string label;             // "data file /x/y.raw" or "file /x/a.nrrd" (attached)
-    std::uint64_t offset = 0;      // first byte to read (raw, ascii) or to inflate (zlib)
-    std::uint64_t in_bytes = 0;    // bytes to use from offset
+    std::string label;           // "data file /x/y.raw" or "file /x/a.nrrd" (attached)
+    std::uint64_t offset = 0;    // first byte to read (raw, ascii) or to inflate (zlib)
+    std::uint64_t in_bytes = 0;  // bytes to use from offset
 };
 
-[[noreturn]] void truncated(const std::string& subject, const Piece& p, std::uint64_t size, std::uint64_t before,
-                            std::uint64_t need) {
+[[noreturn]] void truncated(const std::string& subject, const Piece& p, std::uint64_t size,
+                            std::uint64_t before, std::uint64_t need) {
     std::string msg = p.label + " holds " + std::to_string(size) + " bytes, expected ";
-    if (before == 0) msg += std::to_string(need);
-    else if (need > std::numeric_limits<std::uint64_t>::max() - before) msg += "more than 2^64";
-    else msg += std::to_string(before + need) + " (" + std::to_string(before) + " before the data + " +
-                std::to_string(need) + " of data)";
+    if (before == 0)
+        msg += std::to_string(need);
+    else if (need > std::numeric_limits<std::uint64_t>::max() - before)
+        msg += "more than 2^64";
+    else
+        msg += std::to_string(before + need) + " (" + std::to_string(before) + " before the data + " +
+               std::to_string(need) + " of data)";
     throw Error(subject, msg);
 }
 
@@ -363,14 +394,16 @@ std::uint64_t skip_lines(const std::string& subject, const Piece& p, std::uint64
     for (;;) {
         const std::size_t got = in.read(buf.data(), buf.size());
         if (got == 0)
-            throw Error(subject, p.label + " ends before the " + std::to_string(lines) + " lines of 'line skip'");
+            throw Error(subject,
+                        p.label + " ends before the " + std::to_string(lines) + " lines of 'line skip'");
         for (std::size_t i = 0; i < got; ++i)
             if (buf[i] == '\n' && ++found == lines) return base + i + 1;
         base += got;
     }
 }
 
-void plan_raw(const std::string& subject, Piece& p, const DataSpec& spec, std::uint64_t size, std::uint64_t need) {
+void plan_raw(const std::string& subject, Piece& p, const DataSpec& spec, std::uint64_t size,
+              std::uint64_t need) {
     if (spec.data_at_end) {
         if (size - p.offset < need) truncated(subject, p, size, p.offset, need);
         p.offset = size - need;
@@ -385,18 +418,23 @@ void plan_raw(const std::string& subject, Piece& p, const DataSpec& spec, std::u
     p.in_bytes = need;
 }
 
-void plan_zlib(const std::string& subject, Piece& p, const DataSpec& spec, std::uint64_t size, std::uint64_t need) {
+void plan_zlib(const std::string& subject, Piece& p, const DataSpec& spec, std::uint64_t size,
+               std::uint64_t need) {
     std::uint64_t avail = size - p.offset;
     if (spec.compressed_bytes) {
         if (*spec.compressed_bytes > avail)
-            throw Error(subject, p.label + " holds " + std::to_string(avail) + " bytes of compressed data, the "
-                                 "header says " + std::to_string(*spec.compressed_bytes));
+            throw Error(subject, p.label + " holds " + std::to_string(avail) +
+                                     " bytes of compressed data, the "
+                                     "header says " +
+                                     std::to_string(*spec.compressed_bytes));
         avail = *spec.compressed_bytes;
     }
     // deflate expands at most 1032:1: refuse impossible claims before allocating
     if (avail == 0 || need / 1032 + spec.byte_skip / 1032 > avail + 64)
-        throw Error(subject, p.label + " holds " + std::to_string(avail) + " bytes of compressed data, too few "
-                             "to expand to the " + std::to_string(need) + " bytes expected");
+        throw Error(subject, p.label + " holds " + std::to_string(avail) +
+                                 " bytes of compressed data, too few "
+                                 "to expand to the " +
+                                 std::to_string(need) + " bytes expected");
     p.in_bytes = avail;
 }
 
@@ -406,8 +444,8 @@ void plan_ascii(const std::string& subject, Piece& p, const DataSpec& spec, std:
     p.offset += spec.byte_skip;
     p.in_bytes = size - p.offset;
     if (p.in_bytes < values)
-        throw Error(subject, p.label + " holds " + std::to_string(p.in_bytes) + " bytes of text, too few for " +
-                                 std::to_string(values) + " values");
+        throw Error(subject, p.label + " holds " + std::to_string(p.in_bytes) +
+                                 " bytes of text, too few for " + std::to_string(values) + " values");
 }
 
 Piece plan_piece(const std::string& subject, const DataFile& f, const DataSpec& spec, std::uint64_t need,
@@ -417,9 +455,15 @@ Piece plan_piece(const std::string& subject, const DataFile& f, const DataSpec& 
     if (p.offset > size) truncated(subject, p, size, p.offset, need);
     if (spec.line_skip > 0) p.offset = skip_lines(subject, p, spec.line_skip);
     switch (spec.encoding) {
-        case Encoding::raw: plan_raw(subject, p, spec, size, need); break;
-        case Encoding::zlib: plan_zlib(subject, p, spec, size, need); break;
-        case Encoding::ascii: plan_ascii(subject, p, spec, size, need / sample); break;
+        case Encoding::raw:
+            plan_raw(subject, p, spec, size, need);
+            break;
+        case Encoding::zlib:
+            plan_zlib(subject, p, spec, size, need);
+            break;
+        case Encoding::ascii:
+            plan_ascii(subject, p, spec, size, need / sample);
+            break;
     }
     return p;
 }
@@ -428,7 +472,11 @@ Piece plan_piece(const std::string& subject, const DataFile& f, const DataSpec& 
 class Inflater {
 public:
     Inflater(const std::string& subject, const Piece& p)
-        : subject_(subject), piece_(p), in_(subject, p.file->path), left_(p.in_bytes), buf_(std::size_t{1} << 18) {
+        : subject_(subject),
+          piece_(p),
+          in_(subject, p.file->path),
+          left_(p.in_bytes),
+          buf_(std::size_t{1} << 18) {
         in_.seek(p.offset);
         if (inflateInit2(&zs_, 15 + 32) != Z_OK) throw Error(subject, "cannot initialise zlib");
     }
@@ -445,10 +493,12 @@ public:
             if (zs_.avail_in == 0 && left_ > 0) refill();
             unsigned char* dst = scratch.data();
             std::size_t room = 1;  // once full: probe for extra data
-            if (done < skip) room = static_cast<std::size_t>(std::min<std::uint64_t>(scratch.size(), skip - done));
+            if (done < skip)
+                room = static_cast<std::size_t>(std::min<std::uint64_t>(scratch.size(), skip - done));
             else if (done < total) {
                 dst = reinterpret_cast<unsigned char*>(out.data()) + (done - skip);
-                room = static_cast<std::size_t>(std::min<std::uint64_t>(total - done, std::uint64_t{1} << 30));
+                room =
+                    static_cast<std::size_t>(std::min<std::uint64_t>(total - done, std::uint64_t{1} << 30));
             }
             zs_.next_out = dst;
             zs_.avail_out = static_cast<uInt>(room);
@@ -472,8 +522,10 @@ public:
 
 private:
     void refill() {
-        if (zs_.avail_in > 0 && zs_.next_in != buf_.data()) std::memmove(buf_.data(), zs_.next_in, zs_.avail_in);
-        const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(buf_.size() - zs_.avail_in, left_));
+        if (zs_.avail_in > 0 && zs_.next_in != buf_.data())
+            std::memmove(buf_.data(), zs_.next_in, zs_.avail_in);
+        const auto want =
+            static_cast<std::size_t>(std::min<std::uint64_t>(buf_.size() - zs_.avail_in, left_));
         const std::size_t got = in_.read(buf_.data() + zs_.avail_in, want);
         left_ = got < want ? 0 : left_ - got;
         zs_.next_in = buf_.data();
@@ -486,7 +538,8 @@ private:
         return inflateReset(&zs_) == Z_OK;
     }
     [[noreturn]] void corrupt(int rc) {
-        const std::string why = zs_.msg ? zs_.msg : (rc == Z_NEED_DICT ? "needs a preset dictionary" : "zlib error");
+        const std::string why =
+            zs_.msg ? zs_.msg : (rc == Z_NEED_DICT ? "needs a preset dictionary" : "zlib error");
         throw Error(subject_, "corrupt compressed (gzip/zlib) data in " + piece_.label + ": " + why);
     }
 
@@ -527,25 +580,31 @@ void read_ascii_piece(const std::string& subject, const Piece& p, std::span<T> o
     std::uint64_t left = p.in_bytes;
     const auto flush = [&] {
         if (!token.empty() && n < out.size() && !parse_ascii_value(token, out[n]))
-            throw Error(subject, p.label + ": value " + std::to_string(first + n) + " '" + token.substr(0, 40) +
-                                     "' is not a valid " + std::string(dtype_name(type)));
+            throw Error(subject, p.label + ": value " + std::to_string(first + n) + " '" +
+                                     token.substr(0, 40) + "' is not a valid " +
+                                     std::string(dtype_name(type)));
         if (!token.empty()) ++n;
         token.clear();
     };
     while (n < out.size() && left > 0) {
-        const std::size_t got = in.read(buf.data(), static_cast<std::size_t>(std::min<std::uint64_t>(buf.size(), left)));
+        const std::size_t got =
+            in.read(buf.data(), static_cast<std::size_t>(std::min<std::uint64_t>(buf.size(), left)));
         if (got == 0) break;
         left -= got;
         for (std::size_t i = 0; i < got && n < out.size(); ++i) {
             const char c = buf[i];
-            if (std::isspace(static_cast<unsigned char>(c)) || c == ',') flush();
-            else if (token.size() < 64) token += c;
-            else throw Error(subject, p.label + ": value " + std::to_string(first + n) + " is not a number");
+            if (std::isspace(static_cast<unsigned char>(c)) || c == ',')
+                flush();
+            else if (token.size() < 64)
+                token += c;
+            else
+                throw Error(subject, p.label + ": value " + std::to_string(first + n) + " is not a number");
         }
     }
     flush();
     if (n < out.size())
-        throw Error(subject, p.label + " holds " + std::to_string(n) + " values, expected " + std::to_string(out.size()));
+        throw Error(subject, p.label + " holds " + std::to_string(n) + " values, expected " +
+                                 std::to_string(out.size()));
 }
 
 void read_piece(const std::string& subject, const Piece& p, const DataSpec& spec, DType type,
@@ -558,12 +617,15 @@ void read_piece(const std::string& subject, const Piece& p, const DataSpec& spec
                 throw Error(subject, p.label + " ended while it was being read");
             return;
         }
-        case Encoding::zlib: Inflater(subject, p).run(spec.byte_skip, out); return;
-        case Encoding::ascii: break;
+        case Encoding::zlib:
+            Inflater(subject, p).run(spec.byte_skip, out);
+            return;
+        case Encoding::ascii:
+            break;
     }
     visit_dtype(type, [&]<class T>(T*) {
-        read_ascii_piece(subject, p, std::span<T>(reinterpret_cast<T*>(out.data()), out.size() / sizeof(T)), first,
-                         type);
+        read_ascii_piece(subject, p, std::span<T>(reinterpret_cast<T*>(out.data()), out.size() / sizeof(T)),
+                         first, type);
     });
 }
 
@@ -585,7 +647,8 @@ Volume read_grid(const std::string& subject, const GridShape& shape, const std::
     Volume v(shape.dims, shape.dtype, shape.components);
     for (std::size_t i = 0; i < pieces.size(); ++i)
         read_piece(subject, pieces[i], spec, shape.dtype,
-                   std::span<std::byte>(v.bytes() + i * share, static_cast<std::size_t>(share)), i * share / sample);
+                   std::span<std::byte>(v.bytes() + i * share, static_cast<std::size_t>(share)),
+                   i * share / sample);
     const bool native_big = std::endian::native == std::endian::big;
     if (spec.encoding != Encoding::ascii && spec.big_endian != native_big)
         swap_bytes(std::span<std::byte>(v.bytes(), v.size_bytes()), sample);

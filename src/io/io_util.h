@@ -40,8 +40,8 @@ std::optional<double> parse_double(std::string_view s);
 std::vector<double> field_doubles(const std::string& subject, std::string_view field, std::string_view value,
                                   std::size_t n);
 /// Exactly n integers, each >= min_value.
-std::vector<std::int64_t> field_ints(const std::string& subject, std::string_view field, std::string_view value,
-                                     std::size_t n, std::int64_t min_value);
+std::vector<std::int64_t> field_ints(const std::string& subject, std::string_view field,
+                                     std::string_view value, std::size_t n, std::int64_t min_value);
 /// One integer >= min_value.
 std::int64_t field_int(const std::string& subject, std::string_view field, std::string_view value,
                        std::int64_t min_value);
@@ -80,8 +80,9 @@ inline constexpr std::uint64_t kMaxDataFiles = std::uint64_t{1} << 20;
 /// has no or several conversions, step is 0 or points away from max, or the
 /// count exceeds kMaxDataFiles or differs from `expected`.
 std::vector<std::filesystem::path> expand_pattern(const std::string& subject, std::string_view field,
-                                                  const std::filesystem::path& header, std::string_view pattern,
-                                                  std::int64_t min, std::int64_t max, std::int64_t step,
+                                                  const std::filesystem::path& header,
+                                                  std::string_view pattern, std::int64_t min,
+                                                  std::int64_t max, std::int64_t step,
                                                   std::uint64_t expected);
 
 /// How many files a LIST or pattern must name when each holds the first
@@ -107,9 +108,9 @@ enum class Encoding : std::uint8_t { raw, zlib, ascii };  // zlib: zlib or gzip,
 struct DataSpec {
     Encoding encoding = Encoding::raw;
     bool big_endian = false;
-    bool data_at_end = false;  // NRRD "byte skip: -1", MetaImage "HeaderSize = -1" (raw only)
-    std::uint64_t byte_skip = 0;   // raw/ascii: in the file; zlib: in the decompressed stream
-    std::uint64_t line_skip = 0;   // lines skipped in the file before anything else
+    bool data_at_end = false;     // NRRD "byte skip: -1", MetaImage "HeaderSize = -1" (raw only)
+    std::uint64_t byte_skip = 0;  // raw/ascii: in the file; zlib: in the decompressed stream
+    std::uint64_t line_skip = 0;  // lines skipped in the file before anything else
     std::optional<std::uint64_t> compressed_bytes;  // zlib: bytes of compressed input, if known
 };
 

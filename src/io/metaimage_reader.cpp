@@ -14,6 +14,7 @@
 
 #include "fathom/error.h"
 #include "fathom/io.h"
+
 #include "io/io_util.h"
 
 namespace fathom {
@@ -67,8 +68,8 @@ std::optional<MetaHeader> parse_header(const std::string& subject, std::string_v
 
 DType parse_element_type(const std::string& subject, std::string_view value) {
     static const std::map<std::string, DType, std::less<>> kTypes{
-        {"met_uchar", DType::u8},  {"met_char", DType::i8},   {"met_ushort", DType::u16},
-        {"met_short", DType::i16}, {"met_uint", DType::u32},  {"met_int", DType::i32},
+        {"met_uchar", DType::u8},  {"met_char", DType::i8},    {"met_ushort", DType::u16},
+        {"met_short", DType::i16}, {"met_uint", DType::u32},   {"met_int", DType::i32},
         {"met_ulong", DType::u32}, {"met_long", DType::i32},  // MetaIO's LONG is 4 bytes
         {"met_float", DType::f32}, {"met_double", DType::f64},
     };
@@ -85,7 +86,8 @@ DType parse_element_type(const std::string& subject, std::string_view value) {
 class MetaImageReader {
 public:
     explicit MetaImageReader(const std::filesystem::path& path)
-        : path_(path), subject_(path.string()),
+        : path_(path),
+          subject_(path.string()),
           h_(io::parse_growing_prefix(subject_, path, [this](std::string_view text, bool whole) {
               return parse_header(subject_, text, whole);
           })) {}
@@ -106,7 +108,8 @@ public:
 
 private:
     /// The first of the given keys (aliases) that is present.
-    std::optional<std::pair<std::string, std::string_view>> get(std::initializer_list<const char*> keys) const {
+    std::optional<std::pair<std::string, std::string_view>> get(
+        std::initializer_list<const char*> keys) const {
         for (const char* k : keys)
             if (auto it = h_.fields.find(io::to_lower(k)); it != h_.fields.end())
                 return std::pair{std::string(k), std::string_view(it->second)};
@@ -141,7 +144,8 @@ io::GridShape MetaImageReader::parse_shape() {
     if (io::parse_int(ndims) != 3)
         throw Error(subject_, "field 'NDims': expected 3, got '" + std::string(ndims) + "'");
     sizes_ = io::field_ints(subject_, "DimSize", require("DimSize"), 3, 1);
-    io::GridShape shape{{sizes_[0], sizes_[1], sizes_[2]}, parse_element_type(subject_, require("ElementType")), 1};
+    io::GridShape shape{
+        {sizes_[0], sizes_[1], sizes_[2]}, parse_element_type(subject_, require("ElementType")), 1};
     if (auto c = get({"ElementNumberOfChannels"})) {
         const auto n = io::parse_int(c->second);
         if (n != 1 && n != 3)
@@ -156,7 +160,8 @@ io::DataSpec MetaImageReader::parse_data_spec() {
     io::DataSpec spec;
     const bool binary = flag({"BinaryData"}, true);
     const bool compressed = flag({"CompressedData"}, false);
-    if (compressed && !binary) throw Error(subject_, "field 'CompressedData': compressed ASCII data is unsupported");
+    if (compressed && !binary)
+        throw Error(subject_, "field 'CompressedData': compressed ASCII data is unsupported");
     spec.encoding = !binary ? io::Encoding::ascii : (compressed ? io::Encoding::zlib : io::Encoding::raw);
     spec.big_endian = flag({"BinaryDataByteOrderMSB", "ElementByteOrderMSB"}, false);
     if (auto s = get({"CompressedDataSize"}); s && compressed)
@@ -211,11 +216,13 @@ std::vector<io::DataFile> MetaImageReader::data_files() const {
         const auto expected = io::files_for_subdim(subject_, "ElementDataFile", sizes_,
                                                    tokens.size() > 1 ? tokens[1] : std::string_view{});
         if (h_.list_files.size() != expected)
-            throw Error(subject_, "field 'ElementDataFile': LIST names " + std::to_string(h_.list_files.size()) +
-                                      " files, expected " + std::to_string(expected));
+            throw Error(subject_, "field 'ElementDataFile': LIST names " +
+                                      std::to_string(h_.list_files.size()) + " files, expected " +
+                                      std::to_string(expected));
         for (const auto& f : h_.list_files) paths.push_back(io::resolve_beside(path_, f));
     } else if ((tokens.size() == 4 || tokens.size() == 5) && tokens[0].find('%') != std::string_view::npos) {
-        const auto min = io::parse_int(tokens[1]), max = io::parse_int(tokens[2]), step = io::parse_int(tokens[3]);
+        const auto min = io::parse_int(tokens[1]), max = io::parse_int(tokens[2]),
+                   step = io::parse_int(tokens[3]);
         if (!min || !max || !step)
             throw Error(subject_, "field 'ElementDataFile': expected 'FORMAT MIN MAX STEP', got '" +
                                       std::string(value) + "'");
@@ -233,6 +240,8 @@ std::vector<io::DataFile> MetaImageReader::data_files() const {
 
 }  // namespace
 
-Volume read_metaimage(const std::filesystem::path& path) { return MetaImageReader(path).read(); }
+Volume read_metaimage(const std::filesystem::path& path) {
+    return MetaImageReader(path).read();
+}
 
 }  // namespace fathom

@@ -14,6 +14,7 @@
 #include "fathom/error.h"
 #include "fathom/io.h"
 #include "fathom/log.h"
+
 #include "io/io_util.h"
 
 namespace fathom {
@@ -86,15 +87,19 @@ std::optional<NrrdHeader> parse_header(const std::string& subject, std::string_v
         std::string_view line = text.substr(begin, pos == std::string_view::npos ? pos : pos - begin);
         if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
         if (line.empty()) {
-            if (pos != std::string_view::npos) h.data_start = pos + 1;
-            else if (begin < text.size()) h.data_start = text.size();
+            if (pos != std::string_view::npos)
+                h.data_start = pos + 1;
+            else if (begin < text.size())
+                h.data_start = text.size();
             break;
         }
         if (in_list && h.list_files.size() >= io::kMaxDataFiles)
-            throw Error(subject, "field 'data file': LIST names more than " + std::to_string(io::kMaxDataFiles) +
-                                     " files");
-        if (in_list) h.list_files.emplace_back(io::trim(line));
-        else if (line[0] != '#') add_field_line(subject, h, line, line_no);
+            throw Error(subject, "field 'data file': LIST names more than " +
+                                     std::to_string(io::kMaxDataFiles) + " files");
+        if (in_list)
+            h.list_files.emplace_back(io::trim(line));
+        else if (line[0] != '#')
+            add_field_line(subject, h, line, line_no);
         in_list = in_list || starts_list(h);
     }
     return h;
@@ -104,24 +109,45 @@ std::optional<NrrdHeader> parse_header(const std::string& subject, std::string_v
 
 DType parse_type(const std::string& subject, std::string_view value) {
     static const std::map<std::string, DType, std::less<>> kTypes{
-        {"signed char", DType::i8}, {"int8", DType::i8}, {"int8_t", DType::i8},
-        {"uchar", DType::u8}, {"unsigned char", DType::u8}, {"uint8", DType::u8}, {"uint8_t", DType::u8},
-        {"short", DType::i16}, {"short int", DType::i16}, {"signed short", DType::i16},
-        {"signed short int", DType::i16}, {"int16", DType::i16}, {"int16_t", DType::i16},
-        {"ushort", DType::u16}, {"unsigned short", DType::u16}, {"unsigned short int", DType::u16},
-        {"uint16", DType::u16}, {"uint16_t", DType::u16},
-        {"int", DType::i32}, {"signed int", DType::i32}, {"int32", DType::i32}, {"int32_t", DType::i32},
-        {"uint", DType::u32}, {"unsigned int", DType::u32}, {"uint32", DType::u32}, {"uint32_t", DType::u32},
-        {"float", DType::f32}, {"double", DType::f64},
+        {"signed char", DType::i8},
+        {"int8", DType::i8},
+        {"int8_t", DType::i8},
+        {"uchar", DType::u8},
+        {"unsigned char", DType::u8},
+        {"uint8", DType::u8},
+        {"uint8_t", DType::u8},
+        {"short", DType::i16},
+        {"short int", DType::i16},
+        {"signed short", DType::i16},
+        {"signed short int", DType::i16},
+        {"int16", DType::i16},
+        {"int16_t", DType::i16},
+        {"ushort", DType::u16},
+        {"unsigned short", DType::u16},
+        {"unsigned short int", DType::u16},
+        {"uint16", DType::u16},
+        {"uint16_t", DType::u16},
+        {"int", DType::i32},
+        {"signed int", DType::i32},
+        {"int32", DType::i32},
+        {"int32_t", DType::i32},
+        {"uint", DType::u32},
+        {"unsigned int", DType::u32},
+        {"uint32", DType::u32},
+        {"uint32_t", DType::u32},
+        {"float", DType::f32},
+        {"double", DType::f64},
     };
     static const std::set<std::string, std::less<>> k64{
-        "longlong", "long long", "long long int", "signed long long", "signed long long int", "int64", "int64_t",
-        "ulonglong", "unsigned long long", "unsigned long long int", "uint64", "uint64_t"};
+        "longlong", "long long", "long long int", "signed long long",   "signed long long int",
+        "int64",    "int64_t",   "ulonglong",     "unsigned long long", "unsigned long long int",
+        "uint64",   "uint64_t"};
     const std::string v = normalized(value);
     if (auto it = kTypes.find(v); it != kTypes.end()) return it->second;
     if (k64.contains(v) || v == "block")
-        throw Error(subject, "field 'type': '" + v + "' samples are unsupported (8-, 16- and 32-bit integers, "
-                             "float and double are read)");
+        throw Error(subject, "field 'type': '" + v +
+                                 "' samples are unsupported (8-, 16- and 32-bit integers, "
+                                 "float and double are read)");
     throw Error(subject, "field 'type': unknown type '" + std::string(value) + "'");
 }
 
@@ -131,8 +157,8 @@ io::Encoding parse_encoding(const std::string& subject, std::string_view value) 
     if (v == "gzip" || v == "gz") return io::Encoding::zlib;
     if (v == "ascii" || v == "text" || v == "txt") return io::Encoding::ascii;
     const bool known = v == "hex" || v == "bzip2" || v == "bz2" || v == "zrl";
-    throw Error(subject, "field 'encoding': " + std::string(known ? "unsupported" : "unknown") + " encoding '" +
-                             std::string(value) + "' (raw, gzip and ascii are read)");
+    throw Error(subject, "field 'encoding': " + std::string(known ? "unsupported" : "unknown") +
+                             " encoding '" + std::string(value) + "' (raw, gzip and ascii are read)");
 }
 
 /// Sign flips that take the header's space to LPS (SPEC §2).
@@ -144,7 +170,8 @@ Vec3 space_to_lps(const std::string& subject, std::string_view value) {
     if (v == "right-anterior-superior" || v == "ras") return {-1, -1, 1};
     if (v == "left-anterior-superior" || v == "las") return {1, -1, 1};
     if (v.ends_with("-time") || v == "rast" || v == "last" || v == "lpst")
-        throw Error(subject, "field 'space': '" + std::string(value) + "' (a space with time) is unsupported");
+        throw Error(subject,
+                    "field 'space': '" + std::string(value) + "' (a space with time) is unsupported");
     throw Error(subject, "field 'space': unknown space '" + std::string(value) + "'");
 }
 
@@ -152,8 +179,9 @@ Vec3 space_to_lps(const std::string& subject, std::string_view value) {
 std::vector<std::optional<Vec3>> parse_vectors(const std::string& subject, std::string_view field,
                                                std::string_view value) {
     const auto bad = [&] {
-        return Error(subject, "field '" + std::string(field) + "': expected vectors like (x,y,z) or none, got '" +
-                                  std::string(value) + "'");
+        return Error(subject, "field '" + std::string(field) +
+                                  "': expected vectors like (x,y,z) or none, got '" + std::string(value) +
+                                  "'");
     };
     std::vector<std::optional<Vec3>> out;
     std::string_view rest = io::trim(value);
@@ -186,7 +214,8 @@ std::vector<std::optional<Vec3>> parse_vectors(const std::string& subject, std::
 class NrrdReader {
 public:
     explicit NrrdReader(const std::filesystem::path& path)
-        : path_(path), subject_(path.string()),
+        : path_(path),
+          subject_(path.string()),
           h_(io::parse_growing_prefix(subject_, path, [this](std::string_view text, bool whole) {
               return parse_header(subject_, text, whole);
           })) {}
@@ -241,11 +270,37 @@ private:
 };
 
 void NrrdReader::warn_unknown_fields() const {
-    static const std::set<std::string, std::less<>> kKnown{
-        "content", "type", "dimension", "sizes", "endian", "encoding", "byteskip", "lineskip", "datafile",
-        "spacings", "spacedirections", "spaceorigin", "space", "spacedimension", "kinds", "centers", "centerings",
-        "units", "spaceunits", "min", "max", "oldmin", "oldmax", "sampleunits", "labels", "thicknesses",
-        "axismins", "axismaxs", "measurementframe", "number", "blocksize"};
+    static const std::set<std::string, std::less<>> kKnown{"content",
+                                                           "type",
+                                                           "dimension",
+                                                           "sizes",
+                                                           "endian",
+                                                           "encoding",
+                                                           "byteskip",
+                                                           "lineskip",
+                                                           "datafile",
+                                                           "spacings",
+                                                           "spacedirections",
+                                                           "spaceorigin",
+                                                           "space",
+                                                           "spacedimension",
+                                                           "kinds",
+                                                           "centers",
+                                                           "centerings",
+                                                           "units",
+                                                           "spaceunits",
+                                                           "min",
+                                                           "max",
+                                                           "oldmin",
+                                                           "oldmax",
+                                                           "sampleunits",
+                                                           "labels",
+                                                           "thicknesses",
+                                                           "axismins",
+                                                           "axismaxs",
+                                                           "measurementframe",
+                                                           "number",
+                                                           "blocksize"};
     for (const auto& [key, value] : h_.fields)
         if (!kKnown.contains(key)) warn(subject_ + ": unknown NRRD field '" + key + "' ignored");
 }
@@ -259,8 +314,10 @@ io::GridShape NrrdReader::parse_shape() {
     dim_ = static_cast<std::size_t>(*dim);
     sizes_ = io::field_ints(subject_, "sizes", require("sizes", "sizes"), dim_, 1);
     if (dim_ == 4 && sizes_[0] != 1 && sizes_[0] != 3)
-        throw Error(subject_, "field 'sizes': in a 4-D NRRD the first axis holds the components and must have "
-                              "size 1 or 3, got " + std::to_string(sizes_[0]));
+        throw Error(subject_,
+                    "field 'sizes': in a 4-D NRRD the first axis holds the components and must have "
+                    "size 1 or 3, got " +
+                        std::to_string(sizes_[0]));
     io::GridShape shape;
     for (std::size_t a = 0; a < 3; ++a) shape.dims[a] = sizes_[first_spatial() + a];
     shape.components = dim_ == 4 ? static_cast<int>(sizes_[0]) : 1;
@@ -279,10 +336,13 @@ void NrrdReader::check_kinds() const {
         const std::string k = io::to_lower(kinds[a]);
         const bool domain = k == "domain" || k == "space";
         if (a < first_spatial() && (domain || k == "time"))
-            throw Error(subject_, "field 'kinds': the first axis of a 4-D NRRD holds the components "
-                                  "(RGB-color, 3-color, vector, ...), not '" + std::string(kinds[a]) + "'");
+            throw Error(subject_,
+                        "field 'kinds': the first axis of a 4-D NRRD holds the components "
+                        "(RGB-color, 3-color, vector, ...), not '" +
+                            std::string(kinds[a]) + "'");
         if (a >= first_spatial() && !domain && k != "none" && k != "???")
-            throw Error(subject_, "field 'kinds': axis " + std::to_string(a) + " is '" + std::string(kinds[a]) +
+            throw Error(subject_, "field 'kinds': axis " + std::to_string(a) + " is '" +
+                                      std::string(kinds[a]) +
                                       "', but a volume axis must be domain, space or none");
     }
 }
@@ -306,7 +366,8 @@ io::DataSpec NrrdReader::parse_data_spec(DType type) const {
         if (spec.data_at_end && spec.encoding != io::Encoding::raw)
             throw Error(subject_, "field 'byte skip': -1 (data at the end of the file) needs encoding raw");
     }
-    if (auto s = get("lineskip")) spec.line_skip = static_cast<std::uint64_t>(io::field_int(subject_, "line skip", *s, 0));
+    if (auto s = get("lineskip"))
+        spec.line_skip = static_cast<std::uint64_t>(io::field_int(subject_, "line skip", *s, 0));
     return spec;
 }
 
@@ -332,7 +393,8 @@ Mat3 NrrdReader::axes_from_directions(std::string_view value, const Vec3& flip) 
     std::array<Vec3, 3> cols;
     for (std::size_t a = 0; a < 3; ++a) {
         const auto& v = vectors[first_spatial() + a];
-        if (!v) throw Error(subject_, "field 'space directions': spatial axis " + std::to_string(a) + " is none");
+        if (!v)
+            throw Error(subject_, "field 'space directions': spatial axis " + std::to_string(a) + " is none");
         cols[a] = {v->x * flip.x, v->y * flip.y, v->z * flip.z};
     }
     const Mat3 m = Mat3::from_columns(cols[0], cols[1], cols[2]);
@@ -352,9 +414,10 @@ Mat3 NrrdReader::axes_from_spacings(std::string_view value) const {
         if (ok) s[static_cast<int>(a - first_spatial())] = *d;
     }
     if (!ok)
-        throw Error(subject_, "field 'spacings': expected " + std::to_string(dim_) +
-                                  (dim_ == 4 ? " numbers (nan for the component axis)" : " non-zero numbers") +
-                                  ", got '" + std::string(value) + "'");
+        throw Error(subject_,
+                    "field 'spacings': expected " + std::to_string(dim_) +
+                        (dim_ == 4 ? " numbers (nan for the component axis)" : " non-zero numbers") +
+                        ", got '" + std::string(value) + "'");
     return Mat3::diagonal(s);
 }
 
@@ -363,7 +426,8 @@ Vec3 NrrdReader::parse_origin(const Vec3& flip) const {
     if (!value) return {0, 0, 0};
     const auto vectors = parse_vectors(subject_, "space origin", *value);
     if (vectors.size() != 1 || !vectors[0])
-        throw Error(subject_, "field 'space origin': expected one vector (x,y,z), got '" + std::string(*value) + "'");
+        throw Error(subject_,
+                    "field 'space origin': expected one vector (x,y,z), got '" + std::string(*value) + "'");
     return {vectors[0]->x * flip.x, vectors[0]->y * flip.y, vectors[0]->z * flip.z};
 }
 
@@ -371,7 +435,9 @@ std::vector<io::DataFile> NrrdReader::data_files() const {
     const auto value = get("datafile");
     if (!value) {
         if (!h_.data_start)
-            throw Error(subject_, "no data: the header has no 'data file' field and no blank line before attached data");
+            throw Error(
+                subject_,
+                "no data: the header has no 'data file' field and no blank line before attached data");
         return {io::DataFile{path_, *h_.data_start, true}};
     }
     const auto tokens = io::split_ws(*value);
@@ -383,7 +449,8 @@ std::vector<io::DataFile> NrrdReader::data_files() const {
                                       " files, expected " + std::to_string(expected));
         for (const auto& f : h_.list_files) paths.push_back(io::resolve_beside(path_, f));
     } else if (tokens.size() >= 4 && tokens.size() <= 5 && tokens[0].find('%') != std::string_view::npos) {
-        const auto min = io::parse_int(tokens[1]), max = io::parse_int(tokens[2]), step = io::parse_int(tokens[3]);
+        const auto min = io::parse_int(tokens[1]), max = io::parse_int(tokens[2]),
+                   step = io::parse_int(tokens[3]);
         if (!min || !max || !step)
             throw Error(subject_, "field 'data file': expected 'FORMAT MIN MAX STEP [SUBDIM]', got '" +
                                       std::string(*value) + "'");
@@ -400,6 +467,8 @@ std::vector<io::DataFile> NrrdReader::data_files() const {
 
 }  // namespace
 
-Volume read_nrrd(const std::filesystem::path& path) { return NrrdReader(path).read(); }
+Volume read_nrrd(const std::filesystem::path& path) {
+    return NrrdReader(path).read();
+}
 
 }  // namespace fathom

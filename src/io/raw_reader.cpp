@@ -8,6 +8,7 @@
 
 #include "fathom/error.h"
 #include "fathom/io.h"
+
 #include "io/io_util.h"
 
 namespace fathom {
@@ -36,9 +37,16 @@ std::optional<std::pair<DType, bool>> parse_type_token(std::string_view token) {
         token.remove_suffix(2);
     }
     static constexpr std::array<std::pair<std::string_view, DType>, 10> kTypes{{
-        {"uint8", DType::u8}, {"int8", DType::i8}, {"uint16", DType::u16}, {"int16", DType::i16},
-        {"uint32", DType::u32}, {"int32", DType::i32}, {"float32", DType::f32}, {"float64", DType::f64},
-        {"float", DType::f32}, {"double", DType::f64},
+        {"uint8", DType::u8},
+        {"int8", DType::i8},
+        {"uint16", DType::u16},
+        {"int16", DType::i16},
+        {"uint32", DType::u32},
+        {"int32", DType::i32},
+        {"float32", DType::f32},
+        {"float64", DType::f64},
+        {"float", DType::f32},
+        {"double", DType::f64},
     }};
     for (const auto& [name, type] : kTypes)
         if (token == name) return std::pair{type, big};
@@ -52,7 +60,8 @@ std::optional<std::array<std::int64_t, 3>> parse_dims_token(std::string_view tok
         const std::size_t x = a < 2 ? token.find('x') : token.size();
         if (x == std::string_view::npos) return std::nullopt;
         const std::string_view part = token.substr(0, x);
-        if (part.empty() || part.find_first_not_of("0123456789") != std::string_view::npos) return std::nullopt;
+        if (part.empty() || part.find_first_not_of("0123456789") != std::string_view::npos)
+            return std::nullopt;
         const auto v = io::parse_int(part);
         if (!v) return std::nullopt;
         dims[a] = *v;
@@ -88,8 +97,10 @@ std::optional<RawLayout> infer_raw_layout(const std::filesystem::path& path) {
     while (!rest.empty()) {
         const std::size_t cut = rest.find('_');
         const std::string_view token = rest.substr(0, cut);
-        if (auto d = parse_dims_token(token)) dims = d;
-        else if (auto t = parse_type_token(token)) type = t;
+        if (auto d = parse_dims_token(token))
+            dims = d;
+        else if (auto t = parse_type_token(token))
+            type = t;
         if (cut == std::string_view::npos) break;
         rest.remove_prefix(cut + 1);
     }

@@ -10,6 +10,7 @@
 
 #include "fathom/error.h"
 #include "fathom/io.h"
+
 #include "tf/tf_json.h"
 
 namespace fathom {
@@ -24,7 +25,8 @@ struct Ctx {
     [[noreturn]] void fail(const std::string& reason) const { throw Error(subject, reason); }
 };
 
-void only_keys(const json& j, std::initializer_list<const char*> keys, const std::string& where, const Ctx& cx) {
+void only_keys(const json& j, std::initializer_list<const char*> keys, const std::string& where,
+               const Ctx& cx) {
     if (!j.is_object()) cx.fail(where + " must be a JSON object");
     for (const auto& [key, value] : j.items())
         if (std::none_of(keys.begin(), keys.end(), [&](const char* k) { return key == k; }))
@@ -45,7 +47,8 @@ std::string string(const json& j, const std::string& where, const Ctx& cx) {
 
 template <std::size_t N>
 std::array<double, N> numbers(const json& j, const std::string& where, const Ctx& cx) {
-    if (!j.is_array() || j.size() != N) cx.fail(where + ": expected " + std::to_string(N) + " numbers, got " + j.dump());
+    if (!j.is_array() || j.size() != N)
+        cx.fail(where + ": expected " + std::to_string(N) + " numbers, got " + j.dump());
     std::array<double, N> r{};
     for (std::size_t i = 0; i < N; ++i) r[i] = number(j[i], where, cx);
     return r;
@@ -82,7 +85,8 @@ Volume load_raw_entry(const json& j, const fs::path& path, const Ctx& cx) {
     RawLayout layout;
     const auto d = numbers<3>(j["dims"], "volume 'dims'", cx);
     for (int a = 0; a < 3; ++a) {
-        if (d[a] < 1 || d[a] != std::floor(d[a]) || d[a] > 1e9) cx.fail("volume 'dims' must be positive integers");
+        if (d[a] < 1 || d[a] != std::floor(d[a]) || d[a] > 1e9)
+            cx.fail("volume 'dims' must be positive integers");
         layout.dims[a] = static_cast<std::int64_t>(d[a]);
     }
     if (!j.contains("dtype")) cx.fail("a raw volume ('dims' given) needs 'dtype'");
@@ -94,7 +98,8 @@ Volume load_raw_entry(const json& j, const fs::path& path, const Ctx& cx) {
     }
     if (j.contains("header_bytes")) {
         const double hb = number(j["header_bytes"], "volume 'header_bytes'", cx);
-        if (hb < 0 || hb != std::floor(hb) || hb > 1e15) cx.fail("volume 'header_bytes' must be an integer >= 0");
+        if (hb < 0 || hb != std::floor(hb) || hb > 1e15)
+            cx.fail("volume 'header_bytes' must be an integer >= 0");
         layout.header_bytes = static_cast<std::uint64_t>(hb);
     }
     return read_raw(path, layout);
@@ -105,7 +110,8 @@ void load_volume_entry(Scene& sc, const json& j, const Ctx& cx) {
               "'volume'", cx);
     const bool pre = j.contains("density") || j.contains("color");
     if (pre) {
-        if (!j.contains("density") || !j.contains("color")) cx.fail("a pre-classified volume needs both 'density' and 'color'");
+        if (!j.contains("density") || !j.contains("color"))
+            cx.fail("a pre-classified volume needs both 'density' and 'color'");
         for (const char* k : {"path", "dims", "dtype", "endian", "header_bytes"})
             if (j.contains(k)) cx.fail(std::string("'") + k + "' is not allowed beside 'density'/'color'");
         sc.volume = read_volume(resolve(j["density"], "volume 'density'", cx));
@@ -120,7 +126,8 @@ void load_volume_entry(Scene& sc, const json& j, const Ctx& cx) {
         sc.volume = load_raw_entry(j, path, cx);
     } else {
         for (const char* k : {"dtype", "endian", "header_bytes"})
-            if (j.contains(k)) cx.fail(std::string("volume '") + k + "' is only allowed with 'dims' (a raw file)");
+            if (j.contains(k))
+                cx.fail(std::string("volume '") + k + "' is only allowed with 'dims' (a raw file)");
         sc.volume = read_volume(path);
     }
     apply_placement(sc.volume, j, cx);
@@ -134,13 +141,15 @@ TransferFunction load_tf_entry(const json& j, const Volume& vol, const Ctx& cx) 
     }
     if (j.contains("preset")) {
         only_keys(j, {"preset"}, "'transfer_function'", cx);
-        return TransferFunction::preset(string(j["preset"], "transfer_function 'preset'", cx), vol.value_range());
+        return TransferFunction::preset(string(j["preset"], "transfer_function 'preset'", cx),
+                                        vol.value_range());
     }
     return tf_from_json(j, cx.subject);
 }
 
 Camera load_camera(const json& j, const Bounds& b, const Ctx& cx) {
-    only_keys(j, {"projection", "position", "look_at", "up", "fov_y", "height", "camera_to_world", "orbit"}, "'camera'", cx);
+    only_keys(j, {"projection", "position", "look_at", "up", "fov_y", "height", "camera_to_world", "orbit"},
+              "'camera'", cx);
     const int forms = int(j.contains("position") || j.contains("look_at") || j.contains("up")) +
                       int(j.contains("camera_to_world")) + int(j.contains("orbit"));
     if (forms != 1) cx.fail("'camera' needs exactly one of position/look_at/up, camera_to_world or orbit");
@@ -149,14 +158,16 @@ Camera load_camera(const json& j, const Bounds& b, const Ctx& cx) {
         if (j.contains("orbit")) {
             const json& o = j["orbit"];
             only_keys(o, {"azimuth", "elevation", "distance"}, "camera 'orbit'", cx);
-            if (!o.contains("azimuth") || !o.contains("elevation")) cx.fail("camera 'orbit' needs 'azimuth' and 'elevation'");
+            if (!o.contains("azimuth") || !o.contains("elevation"))
+                cx.fail("camera 'orbit' needs 'azimuth' and 'elevation'");
             const double k = o.contains("distance") ? number(o["distance"], "orbit 'distance'", cx) : 3.0;
             if (k <= 0) cx.fail("orbit 'distance' must be > 0");
-            c = Camera::orbit(number(o["azimuth"], "orbit 'azimuth'", cx), number(o["elevation"], "orbit 'elevation'", cx),
-                              k, b.center, b.radius);
+            c = Camera::orbit(number(o["azimuth"], "orbit 'azimuth'", cx),
+                              number(o["elevation"], "orbit 'elevation'", cx), k, b.center, b.radius);
         } else if (j.contains("camera_to_world")) {
             const json& m = j["camera_to_world"];
-            if (!m.is_array() || m.size() != 4) cx.fail("'camera_to_world' must be a 4x4 matrix (4 rows of 4 numbers)");
+            if (!m.is_array() || m.size() != 4)
+                cx.fail("'camera_to_world' must be a 4x4 matrix (4 rows of 4 numbers)");
             std::array<double, 16> a{};
             for (int r = 0; r < 4; ++r) {
                 const auto row = numbers<4>(m[r], "'camera_to_world' row " + std::to_string(r), cx);
@@ -164,9 +175,11 @@ Camera load_camera(const json& j, const Bounds& b, const Ctx& cx) {
             }
             c = Camera::from_matrix(a, cx.subject);
         } else {
-            if (!j.contains("position") || !j.contains("look_at")) cx.fail("'camera' needs 'position' and 'look_at'");
+            if (!j.contains("position") || !j.contains("look_at"))
+                cx.fail("'camera' needs 'position' and 'look_at'");
             const Vec3 up = j.contains("up") ? vec3(j["up"], "camera 'up'", cx) : Vec3{0, 0, 1};
-            c = Camera::look_at(vec3(j["position"], "camera 'position'", cx), vec3(j["look_at"], "camera 'look_at'", cx), up);
+            c = Camera::look_at(vec3(j["position"], "camera 'position'", cx),
+                                vec3(j["look_at"], "camera 'look_at'", cx), up);
         }
     } catch (const Error& e) {
         if (e.subject() == cx.subject) throw;
@@ -174,7 +187,8 @@ Camera load_camera(const json& j, const Bounds& b, const Ctx& cx) {
     }
     if (j.contains("projection")) {
         const std::string p = string(j["projection"], "camera 'projection'", cx);
-        if (p != "perspective" && p != "orthographic") cx.fail("camera 'projection' must be \"perspective\" or \"orthographic\"");
+        if (p != "perspective" && p != "orthographic")
+            cx.fail("camera 'projection' must be \"perspective\" or \"orthographic\"");
         c.projection = p == "perspective" ? Projection::perspective : Projection::orthographic;
     }
     if (j.contains("fov_y")) {
@@ -196,8 +210,10 @@ int positive_int(const json& j, const std::string& where, const Ctx& cx) {
 }
 
 void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
-    only_keys(j, {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
-                  "termination", "background"}, "'render'", cx);
+    only_keys(j,
+              {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
+               "termination", "background"},
+              "'render'", cx);
     if (j.contains("width")) s.width = positive_int(j["width"], "render 'width'", cx);
     if (j.contains("height")) s.height = positive_int(j["height"], "render 'height'", cx);
     if (j.contains("model")) s.model = parse_model(string(j["model"], "render 'model'", cx), cx.subject);
@@ -210,7 +226,8 @@ void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
         s.step_world = u == "world";
     }
     if (j.contains("sample_point"))
-        s.sample_point = parse_sample_point(string(j["sample_point"], "render 'sample_point'", cx), cx.subject);
+        s.sample_point =
+            parse_sample_point(string(j["sample_point"], "render 'sample_point'", cx), cx.subject);
     if (j.contains("order")) s.order = parse_order(string(j["order"], "render 'order'", cx), cx.subject);
     if (j.contains("termination")) s.termination = number(j["termination"], "render 'termination'", cx);
     if (j.contains("background")) {
@@ -242,7 +259,8 @@ Scene parse_scene(std::string_view json_text, const fs::path& base_dir, const st
     const json j = parse_json_text(json_text, subject);
     only_keys(j, {"format", "volume", "transfer_function", "camera", "render"}, "the scene", cx);
     if (!j.contains("format")) cx.fail("missing 'format' (expected \"fathom-scene/1\")");
-    if (j["format"] != "fathom-scene/1") cx.fail("format " + j["format"].dump() + " is not \"fathom-scene/1\"");
+    if (j["format"] != "fathom-scene/1")
+        cx.fail("format " + j["format"].dump() + " is not \"fathom-scene/1\"");
     if (!j.contains("volume")) cx.fail("missing 'volume'");
     Scene sc;
     sc.name = subject;
@@ -254,7 +272,8 @@ Scene parse_scene(std::string_view json_text, const fs::path& base_dir, const st
         if (!j.contains("transfer_function")) cx.fail("missing 'transfer_function'");
         sc.tf = load_tf_entry(j["transfer_function"], sc.volume, cx);
     }
-    const json cam = j.contains("camera") ? j["camera"] : json{{"orbit", {{"azimuth", 45}, {"elevation", 30}}}};
+    const json cam =
+        j.contains("camera") ? j["camera"] : json{{"orbit", {{"azimuth", 45}, {"elevation", 30}}}};
     sc.camera = load_camera(cam, volume_bounds(sc.volume), cx);
     return sc;
 }

@@ -6,6 +6,7 @@
 
 #include "fathom/error.h"
 #include "fathom/io.h"
+
 #include "io/io_util.h"
 
 namespace fathom {
@@ -21,8 +22,8 @@ constexpr std::string_view kSupported =
 /// The first non-empty line reads "Key = ..." with a key MetaImage headers start with.
 bool looks_like_metaimage(std::string_view head) {
     static constexpr std::array<std::string_view, 10> kKeys{
-        "objecttype", "objectsubtype", "ndims", "comment", "dimsize", "name", "id", "parentid", "elementtype",
-        "transformtype"};
+        "objecttype", "objectsubtype", "ndims",       "comment",      "dimsize", "name",
+        "id",         "parentid",      "elementtype", "transformtype"};
     for (auto line : io::split_lines(head)) {
         line = io::trim(line);
         if (line.empty()) continue;
@@ -46,7 +47,10 @@ Reader reader_by_content(std::string_view head) {
 /// Reader for an extension (lower case, with the dot), or nullptr.
 Reader reader_by_extension(const std::string& ext) {
     static constexpr std::array<std::pair<std::string_view, Reader>, 4> kByExtension{{
-        {".nrrd", &read_nrrd}, {".nhdr", &read_nrrd}, {".mhd", &read_metaimage}, {".mha", &read_metaimage},
+        {".nrrd", &read_nrrd},
+        {".nhdr", &read_nrrd},
+        {".mhd", &read_metaimage},
+        {".mha", &read_metaimage},
     }};
     for (const auto& [e, r] : kByExtension)
         if (e == ext) return r;
@@ -66,8 +70,9 @@ Volume read_volume(const std::filesystem::path& path) {
     if (Reader r = reader_by_extension(io::to_lower(path.extension().string()))) return r(path);
     if (auto layout = infer_raw_layout(path)) return read_raw(path, *layout);
     if (name.ends_with(".raw") || name.ends_with(".raw.gz"))
-        throw Error(subject, "a raw file's layout is not in its name: name it NAME_XxYxZ_TYPE.raw (e.g. "
-                             "head_256x256x128_uint16le.raw) or give dims and dtype in a scene file");
+        throw Error(subject,
+                    "a raw file's layout is not in its name: name it NAME_XxYxZ_TYPE.raw (e.g. "
+                    "head_256x256x128_uint16le.raw) or give dims and dtype in a scene file");
     throw Error(subject, "unrecognised volume format; " + std::string(kSupported));
 }
 

@@ -6,6 +6,7 @@
 
 #include "fathom/math.h"
 #include "fathom/transfer_function.h"
+
 #include "integrate/accumulator.h"
 #include "volume/sampler.h"
 
@@ -39,7 +40,9 @@ struct GridMedium {
     [[nodiscard]] MediumSample at(const Vec3& p) const {
         const auto cell = density.cell(p);  // both grids share the lattice
         const double s = density.interpolate(cell);
-        return {s, {s * color.interpolate(cell, 0), s * color.interpolate(cell, 1), s * color.interpolate(cell, 2)}};
+        return {
+            s,
+            {s * color.interpolate(cell, 0), s * color.interpolate(cell, 1), s * color.interpolate(cell, 2)}};
     }
     [[nodiscard]] GridEndSample end_sample(const Vec3& p) const {
         const auto cell = density.cell(p);

@@ -9,6 +9,7 @@
 
 #include "fathom/error.h"
 #include "fathom/render.h"
+
 #include "integrate/alpha.h"
 #include "integrate/preintegrated.h"
 #include "integrate/reference.h"
@@ -89,14 +90,18 @@ Tracer mip_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
 template <class Medium>
 Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
     switch (im.s.model) {
-        case Model::emission_absorption: return integrator_tracer<Model::emission_absorption>(med, im);
-        case Model::absorption: return integrator_tracer<Model::absorption>(med, im);
-        case Model::emission: return integrator_tracer<Model::emission>(med, im);
+        case Model::emission_absorption:
+            return integrator_tracer<Model::emission_absorption>(med, im);
+        case Model::absorption:
+            return integrator_tracer<Model::absorption>(med, im);
+        case Model::emission:
+            return integrator_tracer<Model::emission>(med, im);
         case Model::mip:
             if constexpr (Medium::kHasScalar) return mip_tracer(med, im);
             break;
     }
-    throw Error("model 'mip'", "needs a scalar volume with a transfer function (pre-classified grids are refused)");
+    throw Error("model 'mip'",
+                "needs a scalar volume with a transfer function (pre-classified grids are refused)");
 }
 
 void setup(Renderer::Impl& im, const Volume& lattice) {
@@ -115,7 +120,8 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
     impl_->s = settings;
     check_lattice(volume, "volume");
     if (volume.components() != 1)
-        throw Error("volume", "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
+        throw Error("volume",
+                    "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
     setup(*impl_, volume);
     impl_->tf = Classifier(tf, volume.smallest_spacing());
     impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
@@ -130,7 +136,8 @@ Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings se
     check_lattice(density, "density grid");
     if (density.components() != 1) throw Error("density grid", "must have 1 component");
     if (color.components() != 3) throw Error("color grid", "must have 3 components (RGB)");
-    if (density.dims() != color.dims()) throw Error("color grid", "dimensions differ from the density grid's");
+    if (density.dims() != color.dims())
+        throw Error("color grid", "dimensions differ from the density grid's");
     auto is_float = [](DType t) { return t == DType::f32 || t == DType::f64; };
     if (!is_float(density.dtype()) || !is_float(color.dtype()))
         throw Error("pre-classified grids", "density and color must be float32 or float64");
@@ -155,9 +162,13 @@ Renderer::~Renderer() = default;
 Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
-const RenderSettings& Renderer::settings() const { return impl_->s; }
+const RenderSettings& Renderer::settings() const {
+    return impl_->s;
+}
 
-RayResult Renderer::trace(const Ray& ray) const { return impl_->trace(ray); }
+RayResult Renderer::trace(const Ray& ray) const {
+    return impl_->trace(ray);
+}
 
 Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
     const RenderSettings& s = impl_->s;

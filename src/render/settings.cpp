@@ -17,7 +17,8 @@ E parse_enum(std::string_view s, const std::array<std::pair<std::string_view, E>
         if (n == s) return e;
         list += (list.empty() ? "" : ", ") + std::string(n);
     }
-    throw Error(subject, "unknown " + std::string(what) + " '" + std::string(s) + "' (expected " + list + ")");
+    throw Error(subject,
+                "unknown " + std::string(what) + " '" + std::string(s) + "' (expected " + list + ")");
 }
 
 template <class E, std::size_t N>
@@ -51,18 +52,30 @@ constexpr std::array<std::pair<std::string_view, Order>, 2> kOrders{{
 
 }  // namespace
 
-std::string_view to_string(Model m) { return enum_name(m, kModels); }
-std::string_view to_string(IntegratorKind k) { return enum_name(k, kIntegrators); }
-std::string_view to_string(SamplePoint s) { return enum_name(s, kSamplePoints); }
-std::string_view to_string(Order o) { return enum_name(o, kOrders); }
-Model parse_model(std::string_view s, const std::string& subject) { return parse_enum(s, kModels, subject, "model"); }
+std::string_view to_string(Model m) {
+    return enum_name(m, kModels);
+}
+std::string_view to_string(IntegratorKind k) {
+    return enum_name(k, kIntegrators);
+}
+std::string_view to_string(SamplePoint s) {
+    return enum_name(s, kSamplePoints);
+}
+std::string_view to_string(Order o) {
+    return enum_name(o, kOrders);
+}
+Model parse_model(std::string_view s, const std::string& subject) {
+    return parse_enum(s, kModels, subject, "model");
+}
 IntegratorKind parse_integrator(std::string_view s, const std::string& subject) {
     return parse_enum(s, kIntegrators, subject, "integrator");
 }
 SamplePoint parse_sample_point(std::string_view s, const std::string& subject) {
     return parse_enum(s, kSamplePoints, subject, "sample point");
 }
-Order parse_order(std::string_view s, const std::string& subject) { return parse_enum(s, kOrders, subject, "order"); }
+Order parse_order(std::string_view s, const std::string& subject) {
+    return parse_enum(s, kOrders, subject, "order");
+}
 
 Rgb RenderSettings::background_radiance() const {
     if (transparent) return {0, 0, 0};
@@ -84,7 +97,8 @@ void RenderSettings::validate() const {
         throw Error(subject, "reference tolerance must be > 0");
     if (background)
         for (double c : *background)
-            if (!std::isfinite(c) || c < 0) throw Error(subject, "'background' components must be finite and >= 0");
+            if (!std::isfinite(c) || c < 0)
+                throw Error(subject, "'background' components must be finite and >= 0");
 }
 
 }  // namespace fathom

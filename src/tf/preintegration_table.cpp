@@ -1,11 +1,11 @@
-#include "fathom/preintegration.h"
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <thread>
 
 #include "fathom/error.h"
+#include "fathom/preintegration.h"
+
 #include "integrate/preintegrated.h"
 
 namespace fathom {
@@ -15,7 +15,8 @@ PreintegrationTable build_preintegration_table(const Classifier& tf, double v_lo
     if (size < 2 || size > 8192) throw Error("pre-integration table", "size must be in 2..8192");
     if (!(v_hi > v_lo) || !std::isfinite(v_lo) || !std::isfinite(v_hi))
         throw Error("pre-integration table", "value range must be finite with hi > lo");
-    if (!(delta > 0) || !std::isfinite(delta)) throw Error("pre-integration table", "segment length must be > 0");
+    if (!(delta > 0) || !std::isfinite(delta))
+        throw Error("pre-integration table", "segment length must be > 0");
     PreintegrationTable t;
     t.size = size;
     t.v_lo = v_lo;
@@ -29,11 +30,13 @@ PreintegrationTable build_preintegration_table(const Classifier& tf, double v_lo
     auto worker = [&] {
         for (int j = next++; j < size; j = next++)
             for (int i = 0; i < size; ++i) {
-                const Segment s =
-                    preintegrate_scalar<Model::emission_absorption>(tf, t.v(i), t.v(j), delta, self_attenuation);
-                const std::size_t k = static_cast<std::size_t>(i) + static_cast<std::size_t>(size) * static_cast<std::size_t>(j);
+                const Segment s = preintegrate_scalar<Model::emission_absorption>(tf, t.v(i), t.v(j), delta,
+                                                                                  self_attenuation);
+                const std::size_t k = static_cast<std::size_t>(i) +
+                                      static_cast<std::size_t>(size) * static_cast<std::size_t>(j);
                 t.alpha[k] = static_cast<float>(1.0 - s.transmittance);
-                for (int c = 0; c < 3; ++c) t.color[k * 3 + static_cast<std::size_t>(c)] = static_cast<float>(s.radiance[c]);
+                for (int c = 0; c < 3; ++c)
+                    t.color[k * 3 + static_cast<std::size_t>(c)] = static_cast<float>(s.radiance[c]);
             }
     };
     int nt = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));

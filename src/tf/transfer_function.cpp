@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fathom/error.h"
+
 #include "tf/tf_json.h"
 
 namespace fathom {
@@ -54,7 +55,8 @@ Classifier::Classifier(const TransferFunction& tf, double default_unit_distance)
     s.reserve(tf.alpha_points.size());
     const double u = tf.opacity_unit_distance.value_or(default_unit_distance);
     for (const auto& [v, a] : tf.alpha_points) {
-        const double sigma = tf.alpha_kind == TransferFunction::Alpha::opacity ? opacity_to_extinction(a, u) : a;
+        const double sigma =
+            tf.alpha_kind == TransferFunction::Alpha::opacity ? opacity_to_extinction(a, u) : a;
         s.push_back({v, {sigma}});
     }
     sigma_ = PiecewiseLinear<1>(std::move(s));
@@ -101,8 +103,8 @@ std::vector<std::vector<double>> read_points(const json& j, const std::string& k
 
 TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subject) {
     if (!j.is_object()) throw Error(subject, "a transfer function must be a JSON object");
-    static const std::array<std::string, 7> kKeys{"format", "name", "color", "emission",
-                                                  "opacity", "extinction", "opacity_unit_distance"};
+    static const std::array<std::string, 7> kKeys{
+        "format", "name", "color", "emission", "opacity", "extinction", "opacity_unit_distance"};
     for (const auto& [key, value] : j.items())
         if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
             throw Error(subject, "unknown key '" + key + "' in transfer function");
@@ -125,7 +127,9 @@ TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subjec
     const std::string ckey = has_color ? "color" : "emission";
     for (const auto& p : read_points(j[ckey], ckey, 4, subject)) {
         for (int c = 1; c < 4; ++c)
-            if (p[c] < 0) throw Error(subject, "'" + ckey + "' has a negative component at v = " + std::to_string(p[0]));
+            if (p[c] < 0)
+                throw Error(subject,
+                            "'" + ckey + "' has a negative component at v = " + std::to_string(p[0]));
         tf.color_points.push_back({p[0], {p[1], p[2], p[3]}});
     }
     tf.alpha_kind = has_opacity ? TransferFunction::Alpha::opacity : TransferFunction::Alpha::extinction;
@@ -185,6 +189,8 @@ TransferFunction TransferFunction::from_file(const std::filesystem::path& path) 
     return from_json_text(read_text_file(path), path.string());
 }
 
-std::string TransferFunction::to_json() const { return tf_to_json(*this).dump(2); }
+std::string TransferFunction::to_json() const {
+    return tf_to_json(*this).dump(2);
+}
 
 }  // namespace fathom

@@ -46,7 +46,8 @@ std::pair<Vec3, Vec3> world_box(const Volume& v) {
     const auto& d = v.dims();
     Vec3 lo = v.origin(), hi = v.origin();
     for (int c = 0; c < 8; ++c) {
-        const Vec3 ijk{(c & 1) ? static_cast<double>(d[0] - 1) : 0.0, (c & 2) ? static_cast<double>(d[1] - 1) : 0.0,
+        const Vec3 ijk{(c & 1) ? static_cast<double>(d[0] - 1) : 0.0,
+                       (c & 2) ? static_cast<double>(d[1] - 1) : 0.0,
                        (c & 4) ? static_cast<double>(d[2] - 1) : 0.0};
         const Vec3 p = v.index_to_world(ijk);
         for (int a = 0; a < 3; ++a) {
@@ -89,11 +90,13 @@ std::string histogram_text(const Volume& v, double lo, double hi) {
     const double width = (hi - lo) / kBins;
     for (int b = 0; b < kBins; ++b) {
         const double c = static_cast<double>(bins[static_cast<std::size_t>(b)]);
-        const double frac = log_scale ? std::log1p(c) / std::log1p(static_cast<double>(most)) : c / static_cast<double>(most);
+        const double frac =
+            log_scale ? std::log1p(c) / std::log1p(static_cast<double>(most)) : c / static_cast<double>(most);
         const int len = c > 0 ? std::max(1, static_cast<int>(std::lround(frac * kBarWidth))) : 0;
         const double b_hi = b + 1 == kBins ? hi : lo + (b + 1) * width;
-        out += "  [" + padded(num(lo + b * width), 10) + ", " + padded(num(b_hi), 10) + (b + 1 == kBins ? "] " : ") ") +
-               std::string(static_cast<std::size_t>(len), '#') + std::string(static_cast<std::size_t>(kBarWidth - len), ' ') +
+        out += "  [" + padded(num(lo + b * width), 10) + ", " + padded(num(b_hi), 10) +
+               (b + 1 == kBins ? "] " : ") ") + std::string(static_cast<std::size_t>(len), '#') +
+               std::string(static_cast<std::size_t>(kBarWidth - len), ' ') +
                padded(std::to_string(bins[static_cast<std::size_t>(b)]), 12) + "\n";
     }
     return out;
@@ -104,8 +107,8 @@ std::string histogram_text(const Volume& v, double lo, double hi) {
 std::string describe_volume(const Volume& v, const std::string& name) {
     const auto& d = v.dims();
     std::string out = "file        " + name + "\n";
-    out += "dims        " + std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " + std::to_string(d[2]) +
-           "  (" + std::to_string(v.num_nodes()) + " nodes)\n";
+    out += "dims        " + std::to_string(d[0]) + " x " + std::to_string(d[1]) + " x " +
+           std::to_string(d[2]) + "  (" + std::to_string(v.num_nodes()) + " nodes)\n";
     out += "components  " + std::to_string(v.components()) + "\n";
     out += "type        " + std::string(dtype_name(v.dtype())) + "\n";
     const Vec3 s = v.spacing();

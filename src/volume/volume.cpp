@@ -14,23 +14,37 @@ std::size_t dtype_size(DType t) {
 
 std::string_view dtype_name(DType t) {
     switch (t) {
-        case DType::u8: return "uint8";
-        case DType::i8: return "int8";
-        case DType::u16: return "uint16";
-        case DType::i16: return "int16";
-        case DType::u32: return "uint32";
-        case DType::i32: return "int32";
-        case DType::f32: return "float32";
-        case DType::f64: break;
+        case DType::u8:
+            return "uint8";
+        case DType::i8:
+            return "int8";
+        case DType::u16:
+            return "uint16";
+        case DType::i16:
+            return "int16";
+        case DType::u32:
+            return "uint32";
+        case DType::i32:
+            return "int32";
+        case DType::f32:
+            return "float32";
+        case DType::f64:
+            break;
     }
     return "float64";
 }
 
 DType parse_dtype(std::string_view name, const std::string& subject) {
     static constexpr std::array<std::pair<std::string_view, DType>, 10> kNames{{
-        {"uint8", DType::u8},   {"int8", DType::i8},     {"uint16", DType::u16},
-        {"int16", DType::i16},  {"uint32", DType::u32},  {"int32", DType::i32},
-        {"float32", DType::f32}, {"float64", DType::f64}, {"float", DType::f32},
+        {"uint8", DType::u8},
+        {"int8", DType::i8},
+        {"uint16", DType::u16},
+        {"int16", DType::i16},
+        {"uint32", DType::u32},
+        {"int32", DType::i32},
+        {"float32", DType::f32},
+        {"float64", DType::f64},
+        {"float", DType::f32},
         {"double", DType::f64},
     }};
     for (const auto& [n, t] : kNames)
@@ -46,8 +60,8 @@ Volume::Volume(std::array<std::int64_t, 3> dims, DType type, int components)
     for (auto d : dims) {
         if (d < 1) throw Error("volume", "every dimension must be at least 1");
         if (bytes > kMaxVolumeBytes / static_cast<std::uint64_t>(d))
-            throw Error("volume", "grid of " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) +
-                                      "x" + std::to_string(dims[2]) + " is larger than the " +
+            throw Error("volume", "grid of " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                                      std::to_string(dims[2]) + " is larger than the " +
                                       std::to_string(kMaxVolumeBytes >> 30) + " GiB limit");
         bytes *= static_cast<std::uint64_t>(d);
     }
@@ -84,7 +98,9 @@ double Volume::smallest_spacing() const {
     return std::min({s.x, s.y, s.z});
 }
 
-Vec3 Volume::world_to_index(const Vec3& p) const { return axes_.inverse() * (p - origin_); }
+Vec3 Volume::world_to_index(const Vec3& p) const {
+    return axes_.inverse() * (p - origin_);
+}
 
 std::array<double, 2> Volume::value_range() const {
     return visit_dtype(dtype_, [&]<class T>(T*) {

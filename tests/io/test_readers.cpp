@@ -1,6 +1,4 @@
 // Volume readers (raw, NRRD, MetaImage, read_volume) and describe_volume.
-#include <zlib.h>
-
 #include <algorithm>
 #include <bit>
 #include <chrono>
@@ -13,11 +11,13 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include "fathom/error.h"
 #include "fathom/info.h"
 #include "fathom/io.h"
 #include "fathom/log.h"
+
 #include "test_util.h"
 
 using namespace fathom;
@@ -43,7 +43,8 @@ std::string bytes_of(const std::vector<T>& values, bool big_endian = false) {
     std::string out(values.size() * sizeof(T), '\0');
     std::memcpy(out.data(), values.data(), out.size());
     if (big_endian != (std::endian::native == std::endian::big))
-        for (std::size_t i = 0; i < out.size(); i += sizeof(T)) std::reverse(out.begin() + i, out.begin() + i + sizeof(T));
+        for (std::size_t i = 0; i < out.size(); i += sizeof(T))
+            std::reverse(out.begin() + i, out.begin() + i + sizeof(T));
     return out;
 }
 
@@ -82,14 +83,16 @@ std::vector<T> ramp(std::size_t n, long modulo = 1000, long offset = 0) {
 }
 
 /// Expects fathom::Error whose message contains the file name and every key word.
-void expect_error(const std::function<void()>& f, const fs::path& file, const std::vector<std::string>& words) {
+void expect_error(const std::function<void()>& f, const fs::path& file,
+                  const std::vector<std::string>& words) {
     try {
         f();
         ADD_FAILURE() << "no error for " << file;
     } catch (const Error& e) {
         const std::string what = e.what();
         EXPECT_NE(what.find(file.string()), std::string::npos) << what;
-        for (const auto& w : words) EXPECT_NE(what.find(w), std::string::npos) << "'" << w << "' not in: " << what;
+        for (const auto& w : words)
+            EXPECT_NE(what.find(w), std::string::npos) << "'" << w << "' not in: " << what;
     }
 }
 
@@ -163,7 +166,8 @@ TEST(RawReader, ShortFileIsAnErrorLongerFileAWarning) {
     RawLayout layout;
     layout.dims = {4, 4, 4};
     write_file(dir / "short.raw", std::string(63, 'a'));
-    expect_error([&] { read_raw(dir / "short.raw", layout); }, dir / "short.raw", {"holds 63 bytes, expected 64"});
+    expect_error([&] { read_raw(dir / "short.raw", layout); }, dir / "short.raw",
+                 {"holds 63 bytes, expected 64"});
     layout.header_bytes = 10;
     expect_error([&] { read_raw(dir / "short.raw", layout); }, dir / "short.raw", {"expected 74"});
     layout.header_bytes = 0;
@@ -203,8 +207,8 @@ TEST(RawReader, RefusesBadLayouts) {
 TEST(NrrdReader, AttachedRaw) {
     TempDir dir;
     const auto values = ramp<std::uint16_t>(48);
-    write_file(dir / "a.nrrd", kHeader443 + "encoding: raw\nspacings: 0.5 1 2\nspace origin: (1,2,3)\n\n" +
-                                   bytes_of(values));
+    write_file(dir / "a.nrrd",
+               kHeader443 + "encoding: raw\nspacings: 0.5 1 2\nspace origin: (1,2,3)\n\n" + bytes_of(values));
     const Volume v = read_nrrd(dir / "a.nrrd");
     EXPECT_EQ(v.dims(), (std::array<std::int64_t, 3>{4, 4, 3}));
     EXPECT_EQ(v.dtype(), DType::u16);
@@ -217,10 +221,11 @@ TEST(NrrdReader, AttachedRaw) {
 TEST(NrrdReader, AttachedGzipWithCommentsKeyValuesAndCrlf) {
     TempDir dir;
     const auto values = ramp<std::uint16_t>(48, 7);
-    write_file(dir / "g.nrrd", "NRRD0004\r\n# a comment\r\nmy key:=my value\r\ntype: unsigned short\r\n"
-                               "dimension: 3\r\nsizes: 4 4 3\r\nendian: little\r\nencoding: gzip\r\n"
-                               "centers: cell cell cell\r\nunits: \"mm\" \"mm\" \"mm\"\r\n\r\n" +
-                                   gzip(bytes_of(values)));
+    write_file(dir / "g.nrrd",
+               "NRRD0004\r\n# a comment\r\nmy key:=my value\r\ntype: unsigned short\r\n"
+               "dimension: 3\r\nsizes: 4 4 3\r\nendian: little\r\nencoding: gzip\r\n"
+               "centers: cell cell cell\r\nunits: \"mm\" \"mm\" \"mm\"\r\n\r\n" +
+                   gzip(bytes_of(values)));
     EXPECT_EQ(volume_u16(read_nrrd(dir / "g.nrrd")), values);
 }
 
@@ -228,7 +233,8 @@ TEST(NrrdReader, GzipByteSkipIsInTheStreamLineSkipInTheFile) {
     TempDir dir;
     const auto values = ramp<std::uint16_t>(48);
     write_file(dir / "d.raw.gz", "junk line\n" + gzip("0123456" + bytes_of(values)));
-    write_file(dir / "d.nhdr", kHeader443 + "encoding: gz\nline skip: 1\nbyte skip: 7\ndata file: d.raw.gz\n");
+    write_file(dir / "d.nhdr",
+               kHeader443 + "encoding: gz\nline skip: 1\nbyte skip: 7\ndata file: d.raw.gz\n");
     EXPECT_EQ(volume_u16(read_nrrd(dir / "d.nhdr")), values);
 }
 
@@ -246,16 +252,19 @@ TEST(NrrdReader, AsciiEncoding) {
     TempDir dir;
     std::string text;
     for (int i = 0; i < 8; ++i) text += std::to_string(i * 10 - 30) + (i % 3 == 2 ? "\n" : " ");
-    write_file(dir / "t.nrrd", "NRRD0001\ntype: short\ndimension: 3\nsizes: 2 2 2\nencoding: text\n\n" + text);
+    write_file(dir / "t.nrrd",
+               "NRRD0001\ntype: short\ndimension: 3\nsizes: 2 2 2\nencoding: text\n\n" + text);
     const Volume v = read_nrrd(dir / "t.nrrd");
     EXPECT_EQ(v.dtype(), DType::i16);
     EXPECT_EQ(v.value(0, 0, 0), -30);
     EXPECT_EQ(v.value(1, 1, 1), 40);
-    write_file(dir / "f.nrrd", "NRRD0004\ntype: double\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n"
-                               "0.5, 1e-3, -2.25 3\n4 5 6 7.125\n");
+    write_file(dir / "f.nrrd",
+               "NRRD0004\ntype: double\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n"
+               "0.5, 1e-3, -2.25 3\n4 5 6 7.125\n");
     EXPECT_DOUBLE_EQ(read_nrrd(dir / "f.nrrd").value(1, 1, 1), 7.125);
-    write_file(dir / "o.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n"
-                               "1 2 3 4 5 6 7 300\n");
+    write_file(dir / "o.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n"
+               "1 2 3 4 5 6 7 300\n");
     expect_error([&] { read_nrrd(dir / "o.nrrd"); }, dir / "o.nrrd", {"value 7", "300"});
 }
 
@@ -264,8 +273,9 @@ TEST(NrrdReader, BigEndianFloatDetached) {
     std::vector<float> values(27);
     for (std::size_t i = 0; i < values.size(); ++i) values[i] = 0.25f * static_cast<float>(i) - 1.0f;
     write_file(dir / "f.raw", bytes_of(values, true));
-    write_file(dir / "f.nhdr", "NRRD0004\ntype: float\ndimension: 3\nsizes: 3 3 3\nendian: big\n"
-                               "encoding: raw\ndata file: ./f.raw\n");
+    write_file(dir / "f.nhdr",
+               "NRRD0004\ntype: float\ndimension: 3\nsizes: 3 3 3\nendian: big\n"
+               "encoding: raw\ndata file: ./f.raw\n");
     const Volume v = read_nrrd(dir / "f.nhdr");
     ASSERT_EQ(v.dtype(), DType::f32);
     for (std::size_t i = 0; i < values.size(); ++i) EXPECT_EQ(v.data<float>()[i], values[i]);
@@ -276,7 +286,8 @@ TEST(NrrdReader, ListDataFilesAndPattern) {
     const auto values = ramp<std::uint16_t>(48);
     const std::string bytes = bytes_of(values);
     for (int k = 0; k < 3; ++k) {
-        write_file(dir / ("s" + std::to_string(k) + ".raw"), bytes.substr(static_cast<std::size_t>(k) * 32, 32));
+        write_file(dir / ("s" + std::to_string(k) + ".raw"),
+                   bytes.substr(static_cast<std::size_t>(k) * 32, 32));
         write_file(dir / ("p" + std::string(k + 1 < 10 ? "00" : "0") + std::to_string(k + 1) + ".raw"),
                    bytes.substr(static_cast<std::size_t>(k) * 32, 32));
     }
@@ -292,23 +303,27 @@ TEST(NrrdReader, ListDataFilesAndPattern) {
 
 TEST(NrrdReader, RasSpaceIsNegatedToLps) {
     TempDir dir;
-    write_file(dir / "r.nrrd", kHeader443 + "encoding: raw\nspace: right-anterior-superior\n"
-                                            "space directions: (1,0,0) (0,2,0) (0,0,3)\nspace origin: (10,20,30)\n\n" +
+    write_file(dir / "r.nrrd", kHeader443 +
+                                   "encoding: raw\nspace: right-anterior-superior\n"
+                                   "space directions: (1,0,0) (0,2,0) (0,0,3)\nspace origin: (10,20,30)\n\n" +
                                    bytes_of(ramp<std::uint16_t>(48)));
     const Volume v = read_nrrd(dir / "r.nrrd");
     EXPECT_DOUBLE_EQ(v.axes().m[0][0], -1.0);
     EXPECT_DOUBLE_EQ(v.axes().m[1][1], -2.0);
     EXPECT_DOUBLE_EQ(v.axes().m[2][2], 3.0);
     EXPECT_EQ(v.origin(), (Vec3{-10, -20, 30}));
-    write_file(dir / "l.nrrd", kHeader443 + "encoding: raw\nspace: LAS\nspace directions: (1,0,0) (0,2,0) (0,0,3)\n"
-                                            "space origin: (10,20,30)\n\n" + bytes_of(ramp<std::uint16_t>(48)));
+    write_file(dir / "l.nrrd", kHeader443 +
+                                   "encoding: raw\nspace: LAS\nspace directions: (1,0,0) (0,2,0) (0,0,3)\n"
+                                   "space origin: (10,20,30)\n\n" +
+                                   bytes_of(ramp<std::uint16_t>(48)));
     EXPECT_EQ(read_nrrd(dir / "l.nrrd").origin(), (Vec3{10, -20, 30}));
 }
 
 TEST(NrrdReader, NonDiagonalDirectionsAreKept) {
     TempDir dir;
-    write_file(dir / "o.nrrd", kHeader443 + "encoding: raw\nspace: left-posterior-superior\n"
-                                            "space directions: (0.6,0.8,0) (-0.8,0.6,0) (0,0,2.5)\n\n" +
+    write_file(dir / "o.nrrd", kHeader443 +
+                                   "encoding: raw\nspace: left-posterior-superior\n"
+                                   "space directions: (0.6,0.8,0) (-0.8,0.6,0) (0,0,2.5)\n\n" +
                                    bytes_of(ramp<std::uint16_t>(48)));
     const Volume v = read_nrrd(dir / "o.nrrd");
     EXPECT_DOUBLE_EQ(v.axes().m[1][0], 0.8);
@@ -322,19 +337,25 @@ TEST(NrrdReader, NonDiagonalDirectionsAreKept) {
 TEST(NrrdReader, FourDimensionalRgb) {
     TempDir dir;
     const auto values = ramp<std::uint8_t>(72, 251);
-    write_file(dir / "c.nrrd", "NRRD0005\ntype: uint8\ndimension: 4\nsizes: 3 2 3 4\nencoding: raw\n"
-                               "kinds: RGB-color domain domain domain\nspace: LPS\n"
-                               "space directions: none (2,0,0) (0,2,0) (0,0,2)\n\n" + bytes_of(values));
+    write_file(dir / "c.nrrd",
+               "NRRD0005\ntype: uint8\ndimension: 4\nsizes: 3 2 3 4\nencoding: raw\n"
+               "kinds: RGB-color domain domain domain\nspace: LPS\n"
+               "space directions: none (2,0,0) (0,2,0) (0,0,2)\n\n" +
+                   bytes_of(values));
     const Volume v = read_nrrd(dir / "c.nrrd");
     EXPECT_EQ(v.components(), 3);
     EXPECT_EQ(v.dims(), (std::array<std::int64_t, 3>{2, 3, 4}));
     EXPECT_EQ(v.value(1, 0, 0, 2), 5);
     EXPECT_DOUBLE_EQ(v.spacing().y, 2.0);
-    write_file(dir / "s.nrrd", "NRRD0005\ntype: float\ndimension: 4\nsizes: 3 2 2 2\nencoding: raw\nendian: little\n"
-                               "spacings: nan 1 1 1\n\n" + bytes_of(std::vector<float>(24, 0.5f)));
+    write_file(dir / "s.nrrd",
+               "NRRD0005\ntype: float\ndimension: 4\nsizes: 3 2 2 2\nencoding: raw\nendian: little\n"
+               "spacings: nan 1 1 1\n\n" +
+                   bytes_of(std::vector<float>(24, 0.5f)));
     EXPECT_EQ(read_nrrd(dir / "s.nrrd").components(), 3);
-    write_file(dir / "b.nrrd", "NRRD0005\ntype: uint8\ndimension: 4\nsizes: 3 2 3 4\nencoding: raw\n"
-                               "kinds: domain domain domain domain\n\n" + bytes_of(values));
+    write_file(dir / "b.nrrd",
+               "NRRD0005\ntype: uint8\ndimension: 4\nsizes: 3 2 3 4\nencoding: raw\n"
+               "kinds: domain domain domain domain\n\n" +
+                   bytes_of(values));
     expect_error([&] { read_nrrd(dir / "b.nrrd"); }, dir / "b.nrrd", {"kinds"});
     write_file(dir / "t.nrrd", "NRRD0005\ntype: uint8\ndimension: 4\nsizes: 4 2 3 4\nencoding: raw\n\n" +
                                    bytes_of(ramp<std::uint8_t>(96)));
@@ -345,28 +366,43 @@ TEST(NrrdReader, ByteSkipMinusOneReadsTheEnd) {
     TempDir dir;
     const auto values = ramp<std::uint16_t>(48);
     write_file(dir / "e.raw", std::string(123, 'x') + bytes_of(values, true));
-    write_file(dir / "e.nhdr", "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 4 4 3\nendian: big\nencoding: raw\n"
-                               "byte skip: -1\ndata file: e.raw\n");
+    write_file(dir / "e.nhdr",
+               "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 4 4 3\nendian: big\nencoding: raw\n"
+               "byte skip: -1\ndata file: e.raw\n");
     EXPECT_EQ(volume_u16(read_nrrd(dir / "e.nhdr")), values);
-    write_file(dir / "g.nhdr", "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 4 4 3\nendian: big\nencoding: gzip\n"
-                               "byte skip: -1\ndata file: e.raw\n");
+    write_file(dir / "g.nhdr",
+               "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 4 4 3\nendian: big\nencoding: gzip\n"
+               "byte skip: -1\ndata file: e.raw\n");
     expect_error([&] { read_nrrd(dir / "g.nhdr"); }, dir / "g.nhdr", {"byte skip", "raw"});
 }
 
 TEST(NrrdReader, AcceptsTypeAliases) {
     TempDir dir;
-    const std::vector<std::pair<std::string, DType>> aliases{
-        {"uchar", DType::u8},          {"unsigned char", DType::u8}, {"uint8_t", DType::u8},
-        {"signed char", DType::i8},    {"int8", DType::i8},          {"short", DType::i16},
-        {"short int", DType::i16},     {"signed short", DType::i16}, {"int16", DType::i16},
-        {"ushort", DType::u16},        {"unsigned short", DType::u16}, {"uint16", DType::u16},
-        {"int", DType::i32},           {"int32", DType::i32},        {"uint", DType::u32},
-        {"unsigned int", DType::u32},  {"uint32", DType::u32},       {"float", DType::f32},
-        {"double", DType::f64}};
+    const std::vector<std::pair<std::string, DType>> aliases{{"uchar", DType::u8},
+                                                             {"unsigned char", DType::u8},
+                                                             {"uint8_t", DType::u8},
+                                                             {"signed char", DType::i8},
+                                                             {"int8", DType::i8},
+                                                             {"short", DType::i16},
+                                                             {"short int", DType::i16},
+                                                             {"signed short", DType::i16},
+                                                             {"int16", DType::i16},
+                                                             {"ushort", DType::u16},
+                                                             {"unsigned short", DType::u16},
+                                                             {"uint16", DType::u16},
+                                                             {"int", DType::i32},
+                                                             {"int32", DType::i32},
+                                                             {"uint", DType::u32},
+                                                             {"unsigned int", DType::u32},
+                                                             {"uint32", DType::u32},
+                                                             {"float", DType::f32},
+                                                             {"double", DType::f64}};
     for (const auto& [name, type] : aliases) {
         const std::string data(8 * dtype_size(type), '\0');
-        write_file(dir / "t.nrrd", "NRRD0004\ntype: " + name + "\ndimension: 3\nsizes: 2 2 2\nendian: little\n"
-                                   "encoding: raw\n\n" + data);
+        write_file(dir / "t.nrrd", "NRRD0004\ntype: " + name +
+                                       "\ndimension: 3\nsizes: 2 2 2\nendian: little\n"
+                                       "encoding: raw\n\n" +
+                                       data);
         EXPECT_EQ(read_nrrd(dir / "t.nrrd").dtype(), type) << name;
     }
 }
@@ -377,7 +413,8 @@ TEST(NrrdReaderErrors, TruncatedData) {
     TempDir dir;
     write_file(dir / "d.raw", std::string(50, '\0'));
     write_file(dir / "t.nhdr", kHeader443 + "encoding: raw\ndata file: d.raw\n");
-    expect_error([&] { read_nrrd(dir / "t.nhdr"); }, dir / "t.nhdr", {(dir / "d.raw").string(), "holds 50 bytes, expected 96"});
+    expect_error([&] { read_nrrd(dir / "t.nhdr"); }, dir / "t.nhdr",
+                 {(dir / "d.raw").string(), "holds 50 bytes, expected 96"});
     write_file(dir / "a.nrrd", kHeader443 + "encoding: raw\n\n" + std::string(10, '\0'));
     expect_error([&] { read_nrrd(dir / "a.nrrd"); }, dir / "a.nrrd", {"holds", "of data"});
     write_file(dir / "g.nrrd", kHeader443 + "encoding: gzip\n\n" + gzip(std::string(90, '\0')));
@@ -386,29 +423,38 @@ TEST(NrrdReaderErrors, TruncatedData) {
 
 TEST(NrrdReaderErrors, WrongSizes) {
     TempDir dir;
-    write_file(dir / "z.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 0 2 2\nencoding: raw\n\n" + std::string(8, 'a'));
+    write_file(dir / "z.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 0 2 2\nencoding: raw\n\n" + std::string(8, 'a'));
     expect_error([&] { read_nrrd(dir / "z.nrrd"); }, dir / "z.nrrd", {"field 'sizes'", "0 2 2"});
-    write_file(dir / "n.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2\nencoding: raw\n\n" + std::string(8, 'a'));
-    expect_error([&] { read_nrrd(dir / "n.nrrd"); }, dir / "n.nrrd", {"field 'sizes'", "3 positive integers"});
+    write_file(dir / "n.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2\nencoding: raw\n\n" + std::string(8, 'a'));
+    expect_error([&] { read_nrrd(dir / "n.nrrd"); }, dir / "n.nrrd",
+                 {"field 'sizes'", "3 positive integers"});
     write_file(dir / "m.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 256 -1 2\nencoding: raw\n\n");
     expect_error([&] { read_nrrd(dir / "m.nrrd"); }, dir / "m.nrrd", {"sizes", "256 -1"});
-    write_file(dir / "o.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 1 8 8\nencoding: raw\n\n" + std::string(64, 'a'));
+    write_file(dir / "o.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 1 8 8\nencoding: raw\n\n" + std::string(64, 'a'));
     expect_error([&] { read_nrrd(dir / "o.nrrd"); }, dir / "o.nrrd", {"sizes", "at least 2"});
-    write_file(dir / "d.nrrd", "NRRD0004\ntype: uchar\ndimension: 2\nsizes: 8 8\nencoding: raw\n\n" + std::string(64, 'a'));
+    write_file(dir / "d.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 2\nsizes: 8 8\nencoding: raw\n\n" + std::string(64, 'a'));
     expect_error([&] { read_nrrd(dir / "d.nrrd"); }, dir / "d.nrrd", {"dimension"});
 }
 
 TEST(NrrdReaderErrors, HugeHeaderFailsFastWithoutAllocating) {
     TempDir dir;
     const auto t0 = std::chrono::steady_clock::now();
-    write_file(dir / "h.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 16384 16384 4096\nencoding: raw\n\n1234");
+    write_file(dir / "h.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 16384 16384 4096\nencoding: raw\n\n1234");
     expect_error([&] { read_nrrd(dir / "h.nrrd"); }, dir / "h.nrrd", {"sizes", "limit"});
-    write_file(dir / "j.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2048 2048 2048\nencoding: raw\n\n1234");
+    write_file(dir / "j.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2048 2048 2048\nencoding: raw\n\n1234");
     expect_error([&] { read_nrrd(dir / "j.nrrd"); }, dir / "j.nrrd", {"holds"});
-    write_file(dir / "k.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2048 2048 2048\nencoding: gzip\n\n" +
-                                   gzip("1234"));
+    write_file(
+        dir / "k.nrrd",
+        "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2048 2048 2048\nencoding: gzip\n\n" + gzip("1234"));
     expect_error([&] { read_nrrd(dir / "k.nrrd"); }, dir / "k.nrrd", {"too few"});
-    write_file(dir / "l.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 99999999999999999999 2 2\nencoding: raw\n\n");
+    write_file(dir / "l.nrrd",
+               "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 99999999999999999999 2 2\nencoding: raw\n\n");
     expect_error([&] { read_nrrd(dir / "l.nrrd"); }, dir / "l.nrrd", {"sizes"});
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 2.0);
 }
@@ -420,14 +466,17 @@ TEST(NrrdReaderErrors, UnknownAndUnsupportedFieldValues) {
     expect_error([&] { read_nrrd(dir / "e.nrrd"); }, dir / "e.nrrd", {"encoding", "base64"});
     write_file(dir / "b.nrrd", kHeader443 + "encoding: bzip2\n\n" + data);
     expect_error([&] { read_nrrd(dir / "b.nrrd"); }, dir / "b.nrrd", {"unsupported encoding"});
-    write_file(dir / "t.nrrd", "NRRD0004\ntype: quaternion\ndimension: 3\nsizes: 4 4 3\nencoding: raw\n\n" + data);
+    write_file(dir / "t.nrrd",
+               "NRRD0004\ntype: quaternion\ndimension: 3\nsizes: 4 4 3\nencoding: raw\n\n" + data);
     expect_error([&] { read_nrrd(dir / "t.nrrd"); }, dir / "t.nrrd", {"type", "quaternion"});
-    write_file(dir / "l.nrrd", "NRRD0004\ntype: long long\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n" +
-                                   std::string(64, '\0'));
+    write_file(dir / "l.nrrd",
+               "NRRD0004\ntype: long long\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n" +
+                   std::string(64, '\0'));
     expect_error([&] { read_nrrd(dir / "l.nrrd"); }, dir / "l.nrrd", {"type", "unsupported"});
     write_file(dir / "s.nrrd", kHeader443 + "encoding: raw\nspacings: 1 x 1\n\n" + data);
     expect_error([&] { read_nrrd(dir / "s.nrrd"); }, dir / "s.nrrd", {"field 'spacings'", "1 x 1"});
-    write_file(dir / "d.nrrd", kHeader443 + "encoding: raw\nspace directions: (1,0,0) (0,1) (0,0,1)\n\n" + data);
+    write_file(dir / "d.nrrd",
+               kHeader443 + "encoding: raw\nspace directions: (1,0,0) (0,1) (0,0,1)\n\n" + data);
     expect_error([&] { read_nrrd(dir / "d.nrrd"); }, dir / "d.nrrd", {"space directions"});
     write_file(dir / "p.nrrd", kHeader443 + "encoding: raw\nspace: right-anterior-superior-time\n\n" + data);
     expect_error([&] { read_nrrd(dir / "p.nrrd"); }, dir / "p.nrrd", {"space", "unsupported"});
@@ -457,20 +506,23 @@ TEST(NrrdReaderErrors, NaNAndInfInFloatData) {
     TempDir dir;
     std::vector<float> values(27, 1.0f);
     values[17] = std::numeric_limits<float>::quiet_NaN();
-    write_file(dir / "n.nrrd", "NRRD0004\ntype: float\ndimension: 3\nsizes: 3 3 3\nendian: little\nencoding: raw\n\n" +
-                                   bytes_of(values));
+    write_file(dir / "n.nrrd",
+               "NRRD0004\ntype: float\ndimension: 3\nsizes: 3 3 3\nendian: little\nencoding: raw\n\n" +
+                   bytes_of(values));
     expect_error([&] { read_nrrd(dir / "n.nrrd"); }, dir / "n.nrrd", {"sample 17 is NaN"});
     std::vector<double> d(27, 2.0);
     d[3] = -std::numeric_limits<double>::infinity();
-    write_file(dir / "i.nrrd", "NRRD0004\ntype: double\ndimension: 3\nsizes: 3 3 3\nendian: big\nencoding: raw\n\n" +
-                                   bytes_of(d, true));
+    write_file(dir / "i.nrrd",
+               "NRRD0004\ntype: double\ndimension: 3\nsizes: 3 3 3\nendian: big\nencoding: raw\n\n" +
+                   bytes_of(d, true));
     expect_error([&] { read_nrrd(dir / "i.nrrd"); }, dir / "i.nrrd", {"sample 3 is infinite"});
 }
 
 TEST(NrrdReaderErrors, MangledHeadersNeverCrash) {
     TempDir dir;
-    const std::string good = kHeader443 + "encoding: gzip\nspace: RAS\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n"
-                                          "space origin: (1,2,3)\nbyte skip: 2\n\n" +
+    const std::string good = kHeader443 +
+                             "encoding: gzip\nspace: RAS\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n"
+                             "space origin: (1,2,3)\nbyte skip: 2\n\n" +
                              gzip("xx" + bytes_of(ramp<std::uint16_t>(48)));
     WarningCatcher quiet;
     std::uint32_t rng = 12345;
@@ -499,12 +551,15 @@ TEST(MetaImageReader, LocalCompressedWithMatrixAndOffset) {
     TempDir dir;
     const auto values = ramp<std::uint16_t>(48);
     const std::string z = zlib_compress(bytes_of(values, true));
-    write_file(dir / "m.mha", "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = True\n"
-                              "CompressedData = True\nCompressedDataSize = " + std::to_string(z.size()) +
-                                  "\nTransformMatrix = 0 1 0 -1 0 0 0 0 1\nOffset = 5 6 7\n"
-                                  "CenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\nElementSpacing = 0.5 2 3\n"
-                                  "DimSize = 4 4 3\nSomeVendorField = whatever\nElementType = MET_USHORT\n"
-                                  "ElementDataFile = LOCAL\n" + z);
+    write_file(dir / "m.mha",
+               "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = True\n"
+               "CompressedData = True\nCompressedDataSize = " +
+                   std::to_string(z.size()) +
+                   "\nTransformMatrix = 0 1 0 -1 0 0 0 0 1\nOffset = 5 6 7\n"
+                   "CenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\nElementSpacing = 0.5 2 3\n"
+                   "DimSize = 4 4 3\nSomeVendorField = whatever\nElementType = MET_USHORT\n"
+                   "ElementDataFile = LOCAL\n" +
+                   z);
     const Volume v = read_metaimage(dir / "m.mha");
     EXPECT_EQ(volume_u16(v), values);
     // axis 0 steps along +y (first three numbers), axis 1 along -x
@@ -518,25 +573,37 @@ TEST(MetaImageReader, DetachedListPatternAsciiAndHeaderSize) {
     TempDir dir;
     const auto values = ramp<std::int16_t>(48, 100, -50);
     const std::string bytes = bytes_of(values);
-    for (int k = 0; k < 3; ++k) write_file(dir / ("s" + std::to_string(k) + ".raw"), bytes.substr(static_cast<std::size_t>(k) * 32, 32));
-    write_file(dir / "l.mhd", "NDims = 3\nDimSize = 4 4 3\nElementType = MET_SHORT\nElementDataFile = LIST\ns0.raw\ns1.raw\ns2.raw\n");
+    for (int k = 0; k < 3; ++k)
+        write_file(dir / ("s" + std::to_string(k) + ".raw"),
+                   bytes.substr(static_cast<std::size_t>(k) * 32, 32));
+    write_file(dir / "l.mhd",
+               "NDims = 3\nDimSize = 4 4 3\nElementType = MET_SHORT\nElementDataFile = "
+               "LIST\ns0.raw\ns1.raw\ns2.raw\n");
     EXPECT_EQ(read_metaimage(dir / "l.mhd").value(3, 3, 2), values[47]);
-    write_file(dir / "p.mhd", "NDims = 3\nDimSize = 4 4 3\nElementType = MET_SHORT\nElementDataFile = s%d.raw 0 2 1\n");
+    write_file(dir / "p.mhd",
+               "NDims = 3\nDimSize = 4 4 3\nElementType = MET_SHORT\nElementDataFile = s%d.raw 0 2 1\n");
     EXPECT_EQ(read_metaimage(dir / "p.mhd").value(1, 2, 1), values[1 + 4 * (2 + 4 * 1)]);
     write_file(dir / "h.raw", "HEADER" + bytes);
-    write_file(dir / "h.mhd", "NDims = 3\nDimSize = 4 4 3\nHeaderSize = 6\nElementType = MET_SHORT\nElementDataFile = h.raw\n");
+    write_file(
+        dir / "h.mhd",
+        "NDims = 3\nDimSize = 4 4 3\nHeaderSize = 6\nElementType = MET_SHORT\nElementDataFile = h.raw\n");
     EXPECT_EQ(read_metaimage(dir / "h.mhd").value(0, 0, 0), -50);
-    write_file(dir / "e.mhd", "NDims = 3\nDimSize = 4 4 3\nHeaderSize = -1\nElementType = MET_SHORT\nElementDataFile = h.raw\n");
+    write_file(
+        dir / "e.mhd",
+        "NDims = 3\nDimSize = 4 4 3\nHeaderSize = -1\nElementType = MET_SHORT\nElementDataFile = h.raw\n");
     EXPECT_EQ(read_metaimage(dir / "e.mhd").value(0, 0, 0), -50);
-    write_file(dir / "a.mha", "NDims = 3\nDimSize = 2 2 2\nBinaryData = False\nElementType = MET_FLOAT\n"
-                              "ElementDataFile = LOCAL\n1 2 3 4\n5 6 7 8.5\n");
+    write_file(dir / "a.mha",
+               "NDims = 3\nDimSize = 2 2 2\nBinaryData = False\nElementType = MET_FLOAT\n"
+               "ElementDataFile = LOCAL\n1 2 3 4\n5 6 7 8.5\n");
     EXPECT_DOUBLE_EQ(read_metaimage(dir / "a.mha").value(1, 1, 1), 8.5);
 }
 
 TEST(MetaImageReader, RgbChannels) {
     TempDir dir;
-    write_file(dir / "c.mha", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementNumberOfChannels = 3\n"
-                              "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + bytes_of(ramp<std::uint8_t>(24)));
+    write_file(dir / "c.mha",
+               "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementNumberOfChannels = 3\n"
+               "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                   bytes_of(ramp<std::uint8_t>(24)));
     const Volume v = read_metaimage(dir / "c.mha");
     EXPECT_EQ(v.components(), 3);
     EXPECT_EQ(v.value(1, 1, 1, 2), 23);
@@ -545,25 +612,34 @@ TEST(MetaImageReader, RgbChannels) {
 TEST(MetaImageReaderErrors, MissingFieldsAndBadValues) {
     TempDir dir;
     write_file(dir / "d.raw", std::string(96, '\0'));
-    write_file(dir / "a.mhd", "ObjectType = Image\nNDims = 3\nElementType = MET_USHORT\nElementDataFile = d.raw\n");
+    write_file(dir / "a.mhd",
+               "ObjectType = Image\nNDims = 3\nElementType = MET_USHORT\nElementDataFile = d.raw\n");
     expect_error([&] { read_metaimage(dir / "a.mhd"); }, dir / "a.mhd", {"missing required field 'DimSize'"});
     write_file(dir / "b.mhd", "NDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\n");
     expect_error([&] { read_metaimage(dir / "b.mhd"); }, dir / "b.mhd", {"ElementDataFile"});
-    write_file(dir / "c.mhd", "NDims = 3\nDimSize = 4 4 3\nElementType = MET_COMPLEX\nElementDataFile = d.raw\n");
+    write_file(dir / "c.mhd",
+               "NDims = 3\nDimSize = 4 4 3\nElementType = MET_COMPLEX\nElementDataFile = d.raw\n");
     expect_error([&] { read_metaimage(dir / "c.mhd"); }, dir / "c.mhd", {"ElementType", "MET_COMPLEX"});
     write_file(dir / "e.mhd", "NDims = 2\nDimSize = 4 4\nElementType = MET_UCHAR\nElementDataFile = d.raw\n");
     expect_error([&] { read_metaimage(dir / "e.mhd"); }, dir / "e.mhd", {"NDims"});
-    write_file(dir / "f.mhd", "NDims = 3\nDimSize = 4 4 3\nElementSpacing = 1 x 1\nElementType = MET_USHORT\nElementDataFile = d.raw\n");
+    write_file(dir / "f.mhd",
+               "NDims = 3\nDimSize = 4 4 3\nElementSpacing = 1 x 1\nElementType = "
+               "MET_USHORT\nElementDataFile = d.raw\n");
     expect_error([&] { read_metaimage(dir / "f.mhd"); }, dir / "f.mhd", {"ElementSpacing", "1 x 1"});
-    write_file(dir / "g.mhd", "NDims = 3\nDimSize = 4 4 4\nElementType = MET_USHORT\nElementDataFile = d.raw\n");
-    expect_error([&] { read_metaimage(dir / "g.mhd"); }, dir / "g.mhd", {"d.raw", "holds 96 bytes, expected 128"});
-    write_file(dir / "h.mhd", "NDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\nElementDataFile = gone.raw\n");
+    write_file(dir / "g.mhd",
+               "NDims = 3\nDimSize = 4 4 4\nElementType = MET_USHORT\nElementDataFile = d.raw\n");
+    expect_error([&] { read_metaimage(dir / "g.mhd"); }, dir / "g.mhd",
+                 {"d.raw", "holds 96 bytes, expected 128"});
+    write_file(dir / "h.mhd",
+               "NDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\nElementDataFile = gone.raw\n");
     expect_error([&] { read_metaimage(dir / "h.mhd"); }, dir / "h.mhd", {"gone.raw", "does not exist"});
-    write_file(dir / "i.mha", "NDims = 3\nDimSize = 4 4 3\nCompressedData = True\nElementType = MET_USHORT\n"
-                              "ElementDataFile = LOCAL\nnot zlib at all, not zlib at all, not zlib at all");
+    write_file(dir / "i.mha",
+               "NDims = 3\nDimSize = 4 4 3\nCompressedData = True\nElementType = MET_USHORT\n"
+               "ElementDataFile = LOCAL\nnot zlib at all, not zlib at all, not zlib at all");
     expect_error([&] { read_metaimage(dir / "i.mha"); }, dir / "i.mha", {"corrupt"});
-    write_file(dir / "j.mhd", "NDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\nElementNumberOfChannels = 2\n"
-                              "ElementDataFile = d.raw\n");
+    write_file(dir / "j.mhd",
+               "NDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\nElementNumberOfChannels = 2\n"
+               "ElementDataFile = d.raw\n");
     expect_error([&] { read_metaimage(dir / "j.mhd"); }, dir / "j.mhd", {"ElementNumberOfChannels"});
 }
 
@@ -574,8 +650,10 @@ TEST(ReaderDetect, ByContentThenExtensionThenName) {
     const auto values = ramp<std::uint16_t>(48);
     write_file(dir / "noext", kHeader443 + "encoding: raw\n\n" + bytes_of(values));
     EXPECT_EQ(volume_u16(read_volume(dir / "noext")), values);
-    write_file(dir / "meta.dat", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\n"
-                                 "ElementDataFile = LOCAL\n" + bytes_of(values));
+    write_file(dir / "meta.dat",
+               "ObjectType = Image\nNDims = 3\nDimSize = 4 4 3\nElementType = MET_USHORT\n"
+               "ElementDataFile = LOCAL\n" +
+                   bytes_of(values));
     EXPECT_EQ(volume_u16(read_volume(dir / "meta.dat")), values);
     write_file(dir / "vol_4x4x3_uint16.raw", bytes_of(values));
     EXPECT_EQ(volume_u16(read_volume(dir / "vol_4x4x3_uint16.raw")), values);
@@ -590,7 +668,8 @@ TEST(ReaderDetect, ClearErrors) {
     std::string garbage(1000, '\0');
     for (std::size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<char>((i * 7919u) >> 3);
     write_file(dir / "garbage.bin", garbage);
-    expect_error([&] { read_volume(dir / "garbage.bin"); }, dir / "garbage.bin", {"unrecognised volume format", "NRRD", "MetaImage"});
+    expect_error([&] { read_volume(dir / "garbage.bin"); }, dir / "garbage.bin",
+                 {"unrecognised volume format", "NRRD", "MetaImage"});
     write_file(dir / "empty.nrrd", "");
     expect_error([&] { read_volume(dir / "empty.nrrd"); }, dir / "empty.nrrd", {"empty"});
     write_file(dir / "plain.raw", garbage);
@@ -661,16 +740,19 @@ TEST(ReaderShared, MetaImageMatchesNrrd) {
     const auto dir = fathom::test::shared_data() / "ct_chest_lidc2";
     const Volume ref = read_nrrd(dir / "lidc2.nhdr");
     TempDir tmp;
-    write_file(tmp / "lidc2.mhd", "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
-                                  "CompressedData = False\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = 0 0 0\n"
-                                  "ElementSpacing = 1.40625 1.40625 2.5\nDimSize = 256 256 133\n"
-                                  "ElementType = MET_UCHAR\nElementDataFile = " +
-                                      fs::absolute(dir / "lidc2_256x256x133_uint8.raw").string() + "\n");
+    write_file(tmp / "lidc2.mhd",
+               "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+               "CompressedData = False\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = 0 0 0\n"
+               "ElementSpacing = 1.40625 1.40625 2.5\nDimSize = 256 256 133\n"
+               "ElementType = MET_UCHAR\nElementDataFile = " +
+                   fs::absolute(dir / "lidc2_256x256x133_uint8.raw").string() + "\n");
     const Volume a = read_volume(tmp / "lidc2.mhd");
     const std::string raw(reinterpret_cast<const char*>(ref.bytes()), ref.size_bytes());
-    write_file(tmp / "lidc2.mha", "ObjectType = Image\nNDims = 3\nDimSize = 256 256 133\n"
-                                  "ElementSpacing = 1.40625 1.40625 2.5\nCompressedData = True\n"
-                                  "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + zlib_compress(raw));
+    write_file(tmp / "lidc2.mha",
+               "ObjectType = Image\nNDims = 3\nDimSize = 256 256 133\n"
+               "ElementSpacing = 1.40625 1.40625 2.5\nCompressedData = True\n"
+               "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                   zlib_compress(raw));
     const Volume b = read_volume(tmp / "lidc2.mha");
     for (const Volume* v : {&a, &b}) {
         ASSERT_EQ(v->size_bytes(), ref.size_bytes());
