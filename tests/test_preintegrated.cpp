@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "fathom/preintegration.h"
 #include "fathom/render.h"
 
 #include "integrate/preintegrated.h"
@@ -125,4 +126,20 @@ TEST(Preintegrated, PreclassifiedGridsAreLinearAlongTheSegment) {
     EXPECT_NEAR(r.alpha, 1 - T, 1e-6);
     EXPECT_NEAR(r.radiance[1], 0.5 * (1 - T), 1e-6);
     EXPECT_EQ(r.radiance[0], 0.0);
+}
+
+TEST(Preintegrated, FastTableBuildEqualsDirectEvaluation) {
+    const Classifier c(spiky_tf(), 1.0);
+    for (bool full : {true, false})
+        for (double delta : {0.3, 2.0}) {
+            // knots fall between grid nodes: range −0.07..1.13 over 41 nodes
+            const auto fast = build_preintegration_table(c, -0.07, 1.13, 41, delta, full, 2);
+            const auto direct = build_preintegration_table_direct(c, -0.07, 1.13, 41, delta, full);
+            for (std::size_t k = 0; k < fast.alpha.size(); ++k) {
+                ASSERT_NEAR(fast.alpha[k], direct.alpha[k], 2e-6) << k;
+                for (int ch = 0; ch < 3; ++ch)
+                    ASSERT_NEAR(fast.color[k * 3 + ch], direct.color[k * 3 + ch], 2e-6)
+                        << k << (full ? " full" : " simple");
+            }
+        }
 }

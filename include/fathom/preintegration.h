@@ -23,9 +23,15 @@ struct PreintegrationTable {
     [[nodiscard]] double v(int i) const { return v_lo + (v_hi - v_lo) * i / (size - 1); }
 };
 
-/// Builds the table with the exact segment integrals, over `threads` threads
-/// (0: all cores). Throws Error on size < 2, v_hi ≤ v_lo or δ ≤ 0.
+/// Builds the table exactly in O(size²) segment integrals (each entry is
+/// composed from the grid cells its ramp crosses), over `threads` threads (0:
+/// all cores). Throws Error on size < 2, v_hi ≤ v_lo or δ ≤ 0.
 PreintegrationTable build_preintegration_table(const Classifier& tf, double v_lo, double v_hi, int size,
                                                double delta, bool self_attenuation, int threads = 0);
+
+/// The same table entry by entry (each entry's integrals evaluated on their
+/// own): O(size² · pieces); the check for the fast build.
+PreintegrationTable build_preintegration_table_direct(const Classifier& tf, double v_lo, double v_hi,
+                                                      int size, double delta, bool self_attenuation);
 
 }  // namespace fathom
