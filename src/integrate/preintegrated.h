@@ -63,29 +63,30 @@ PieceIntegral integrate_piece(double len, double s0, double s1, const Quadratic&
 
 }  // namespace preint
 
-/// One pre-integrated segment of a scalar volume: the ramp from v_front
-/// (camera side) to v_back over length δ, under model M.
-template <Model M>
-Segment preintegrate_scalar(const Classifier& tf, double vf, double vb, double delta, bool full) {
+/// A piece of a ramp on which σ and the source are linear/quadratic in l:
+/// fraction dl of the ramp, σ from s0 to s1, source g (particle or emission).
+struct RampPiece {
+    double dl;
+    double s0, s1;
+    preint::Quadratic g;
+};
+
+/// Calls f(RampPiece) for each piece of the ramp v_front → v_back, cut at
+/// every transfer-function control value strictly between them, in order
+/// from the camera side (one-sided limits at jumps come from the piece).
+template <class F>
+void for_each_ramp_piece(const Classifier& tf, double vf, double vb, F&& f) {
     const auto& sig = tf.sigma_function();
     const auto& col = tf.color_function();
-    Rgb E{0, 0, 0};
-    double depth = 0.0, T = 1.0;
     auto piece = [&](double l0, double l1) {
         const double v0 = vf + l0 * (vb - vf), v1 = vf + l1 * (vb - vf);
         const double vm = 0.5 * (v0 + v1);
         const std::size_t ps = sig.piece(vm), pc = col.piece(vm);
-        double s0 = sig.on_piece(ps, v0)[0], s1 = sig.on_piece(ps, v1)[0];
+        const double s0 = sig.on_piece(ps, v0)[0], s1 = sig.on_piece(ps, v1)[0];
         const Rgb c0 = col.on_piece(pc, v0), c1 = col.on_piece(pc, v1);
-        preint::Quadratic g =
-            tf.associated() ? preint::emission_source(c0, c1) : preint::particle_source(s0, s1, c0, c1);
-        if constexpr (M == Model::absorption) g = {};
-        if constexpr (M == Model::emission) s0 = s1 = 0.0;
-        const auto r = preint::integrate_piece((l1 - l0) * delta, s0, s1, g, full);
-        // eq. (16): later pieces are attenuated by the earlier ones; eq. (17): not.
-        for (int k = 0; k < 3; ++k) E[k] += (full ? T : 1.0) * r.radiance[k];
-        depth += r.depth;
-        T = std::exp(-depth);
+        f(RampPiece{
+            l1 - l0, s0, s1,
+            tf.associated() ? preint::emission_source(c0, c1) : preint::particle_source(s0, s1, c0, c1)});
     };
     const auto& knots = tf.breakpoints();
     double l = 0.0;
@@ -106,7 +107,38 @@ Segment preintegrate_scalar(const Classifier& tf, double vf, double vb, double d
         }
     }
     piece(l, 1.0);
-    return {T, E};
+}
+
+/// Composes ramp pieces along one segment of length δ under model M:
+/// eq. (16) (later pieces attenuated by earlier ones) or eq. (17) (not).
+template <Model M>
+class RampIntegral {
+public:
+    RampIntegral(double delta, bool full) : delta_(delta), full_(full) {}
+    void add(RampPiece p) {
+        if constexpr (M == Model::absorption) p.g = {};
+        if constexpr (M == Model::emission) p.s0 = p.s1 = 0.0;
+        const auto r = preint::integrate_piece(p.dl * delta_, p.s0, p.s1, p.g, full_);
+        for (int k = 0; k < 3; ++k) E_[k] += (full_ ? T_ : 1.0) * r.radiance[k];
+        depth_ += r.depth;
+        T_ = std::exp(-depth_);
+    }
+    [[nodiscard]] Segment result() const { return {T_, E_}; }
+
+private:
+    double delta_;
+    bool full_;
+    Rgb E_{0, 0, 0};
+    double depth_ = 0.0, T_ = 1.0;
+};
+
+/// One pre-integrated segment of a scalar volume: the ramp from v_front
+/// (camera side) to v_back over length δ, under model M (eqs. (15)–(17)).
+template <Model M>
+Segment preintegrate_scalar(const Classifier& tf, double vf, double vb, double delta, bool full) {
+    RampIntegral<M> acc(delta, full);
+    for_each_ramp_piece(tf, vf, vb, [&](const RampPiece& p) { acc.add(p); });
+    return acc.result();
 }
 
 /// One pre-integrated segment of pre-classified grids: σ and c linear

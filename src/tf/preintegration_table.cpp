@@ -12,6 +12,7 @@
 // in the spirit of Lum, Wilson and Ma's incremental subrange integration but
 // without its approximation.
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <thread>
@@ -73,18 +74,38 @@ void store(PreintegrationTable& t, int i, int j, const Segment& s) {
         t.color[k * 3 + static_cast<std::size_t>(c)] = static_cast<float>(s.radiance[c]);
 }
 
+// The ramp pieces of every grid cell in both directions; they do not
+// depend on the segment length, so every distance d reuses them.
+struct CellPieces {
+    std::vector<RampPiece> pieces;
+    std::vector<std::size_t> start;  // cell m's pieces are [start[m], start[m + 1])
+};
+
+CellPieces cell_pieces(const PreintegrationTable& t, const Classifier& tf, bool ascending) {
+    CellPieces cp;
+    const int n = t.size;
+    for (int m = 0; m + 1 < n; ++m) {
+        // ascending: cell m from v_m to v_m+1; descending: from v_(n−1−m) to v_(n−2−m)
+        const int a = ascending ? m : n - 1 - m, b = ascending ? m + 1 : n - 2 - m;
+        cp.start.push_back(cp.pieces.size());
+        for_each_ramp_piece(tf, t.v(a), t.v(b), [&](const RampPiece& p) { cp.pieces.push_back(p); });
+    }
+    cp.start.push_back(cp.pieces.size());
+    return cp;
+}
+
 // All entries with |j − i| = d (d ≥ 1), both directions.
-void fill_distance(PreintegrationTable& t, const Classifier& tf, int d, std::vector<Segment>& cells,
-                   std::vector<Segment>& windows) {
+void fill_distance(PreintegrationTable& t, const std::array<CellPieces, 2>& cp, int d,
+                   std::vector<Segment>& cells, std::vector<Segment>& windows) {
     const double len = t.delta / d;
     const int n = t.size;
     for (int dir = 0; dir < 2; ++dir) {
         cells.clear();
-        for (int m = 0; m + 1 < n; ++m) {
-            // ascending: cell m from v_m to v_m+1; descending: from v_(n−1−m) to v_(n−2−m)
-            const int a = dir == 0 ? m : n - 1 - m, b = dir == 0 ? m + 1 : n - 2 - m;
-            cells.push_back(
-                preintegrate_scalar<Model::emission_absorption>(tf, t.v(a), t.v(b), len, t.self_attenuation));
+        const CellPieces& c = cp[static_cast<std::size_t>(dir)];
+        for (std::size_t m = 0; m + 1 < c.start.size(); ++m) {
+            RampIntegral<Model::emission_absorption> acc(len, t.self_attenuation);
+            for (std::size_t p = c.start[m]; p < c.start[m + 1]; ++p) acc.add(c.pieces[p]);
+            cells.push_back(acc.result());
         }
         window_compositions(cells, static_cast<std::size_t>(d), Over{t.self_attenuation}, windows);
         for (std::size_t w = 0; w < windows.size(); ++w) {
@@ -119,10 +140,11 @@ PreintegrationTable build_preintegration_table(const Classifier& tf, double v_lo
         store(t, i, i,
               preintegrate_scalar<Model::emission_absorption>(tf, t.v(i), t.v(i), delta, self_attenuation));
     // Distances are independent; hand them out large-first so the threads finish together.
+    const std::array<CellPieces, 2> cp{cell_pieces(t, tf, true), cell_pieces(t, tf, false)};
     std::atomic<int> next{1};
     auto worker = [&] {
         std::vector<Segment> cells, windows;
-        for (int d = next++; d < size; d = next++) fill_distance(t, tf, d, cells, windows);
+        for (int d = next++; d < size; d = next++) fill_distance(t, cp, d, cells, windows);
     };
     int nt = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     nt = std::min(nt, size - 1);
