@@ -81,10 +81,11 @@ struct Row {
 };
 
 [[noreturn]] void usage(const std::string& why) {
-    std::cerr << "fathom_accuracy: " << why << "\n"
-              << "usage: fathom_accuracy --volume CT --tf TF.json --out CSV [--size N] [--case smooth|ct-spike]\n"
-              << "                       [--reference-tolerance T]\n"
-              << "       fathom_accuracy --summary CSV\n";
+    std::cerr
+        << "fathom_accuracy: " << why << "\n"
+        << "usage: fathom_accuracy --volume CT --tf TF.json --out CSV [--size N] [--case smooth|ct-spike]\n"
+        << "                       [--reference-tolerance T]\n"
+        << "       fathom_accuracy --summary CSV\n";
     std::exit(2);
 }
 
@@ -94,20 +95,29 @@ Options parse_args(int argc, char** argv) {
         const std::string flag = argv[i];
         if (i + 1 >= argc) usage("missing value after " + flag);
         const std::string value = argv[++i];
-        if (flag == "--volume") o.volume = value;
-        else if (flag == "--tf") o.tf = value;
-        else if (flag == "--out") o.out = value;
-        else if (flag == "--summary") o.summary = value;
-        else if (flag == "--case") o.only_case = value;
-        else if (flag == "--size") o.size = std::atoi(value.c_str());
-        else if (flag == "--reference-tolerance") o.reference_tolerance = std::atof(value.c_str());
-        else usage("unknown flag " + flag);
+        if (flag == "--volume")
+            o.volume = value;
+        else if (flag == "--tf")
+            o.tf = value;
+        else if (flag == "--out")
+            o.out = value;
+        else if (flag == "--summary")
+            o.summary = value;
+        else if (flag == "--case")
+            o.only_case = value;
+        else if (flag == "--size")
+            o.size = std::atoi(value.c_str());
+        else if (flag == "--reference-tolerance")
+            o.reference_tolerance = std::atof(value.c_str());
+        else
+            usage("unknown flag " + flag);
     }
     if (!o.summary.empty()) return o;
     if (o.out.empty()) usage("--out is required");
     if (o.size < 8 || o.size > 4096) usage("--size must be in 8..4096");
     if (!(o.reference_tolerance > 0)) usage("--reference-tolerance must be > 0");
-    if (o.only_case != "smooth" && (o.volume.empty() || o.tf.empty())) usage("--volume and --tf are required");
+    if (o.only_case != "smooth" && (o.volume.empty() || o.tf.empty()))
+        usage("--volume and --tf are required");
     return o;
 }
 
@@ -120,7 +130,8 @@ fathom::Volume smooth_volume() {
     for (int k = 0; k < n; ++k)
         for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i)
-                v.set_value(i, j, k, 0.5 + 0.4 * std::sin(0.21 * i + 0.13 * j) * std::cos(0.17 * k - 0.11 * j));
+                v.set_value(i, j, k,
+                            0.5 + 0.4 * std::sin(0.21 * i + 0.13 * j) * std::cos(0.17 * k - 0.11 * j));
     return v;
 }
 
@@ -216,8 +227,8 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
     out << "case,integrator,step,rmse,seconds\n";
     char line[256];
     for (const Row& r : rows) {
-        std::snprintf(line, sizeof line, "%s,%s,%g,%.6e,%.4f\n", r.case_name.c_str(), r.integrator.c_str(), r.step,
-                      r.rmse, r.seconds);
+        std::snprintf(line, sizeof line, "%s,%s,%g,%.6e,%.4f\n", r.case_name.c_str(), r.integrator.c_str(),
+                      r.step, r.rmse, r.seconds);
         out << line;
     }
     fathom::write_text_file(path, out.str());
@@ -273,8 +284,10 @@ std::vector<std::vector<Row>> group(const std::vector<Row>& rows) {
 // "4", "1", "1/8": the step as docs/accuracy.md writes it.
 std::string step_label(double step) {
     char text[32];
-    if (step >= 1.0) std::snprintf(text, sizeof text, "%g", step);
-    else std::snprintf(text, sizeof text, "1/%g", 1.0 / step);
+    if (step >= 1.0)
+        std::snprintf(text, sizeof text, "%g", step);
+    else
+        std::snprintf(text, sizeof text, "1/%g", 1.0 / step);
     return text;
 }
 
@@ -307,15 +320,17 @@ void print_summary(const std::vector<Row>& rows) {
 }
 
 void print_orders(const std::vector<Row>& rows) {
-    std::printf("\nmeasured convergence orders: least-squares slope of log(rmse) vs log(step) over rmse > %g,\n"
-                "and the slope between the two finest steps\n\n",
-                kRmseFloor);
-    std::printf("%-10s %-22s %11s %14s %10s\n", "case", "integrator", "order (fit)", "order (finest)", "seconds");
+    std::printf(
+        "\nmeasured convergence orders: least-squares slope of log(rmse) vs log(step) over rmse > %g,\n"
+        "and the slope between the two finest steps\n\n",
+        kRmseFloor);
+    std::printf("%-10s %-22s %11s %14s %10s\n", "case", "integrator", "order (fit)", "order (finest)",
+                "seconds");
     for (const auto& g : group(rows)) {
         double seconds = 0;
         for (const Row& r : g) seconds += r.seconds;
-        std::printf("%-10s %-22s %11.2f %14.2f %10.2f\n", g.front().case_name.c_str(), g.front().integrator.c_str(),
-                    order_of(g), finest_order(g), seconds);
+        std::printf("%-10s %-22s %11.2f %14.2f %10.2f\n", g.front().case_name.c_str(),
+                    g.front().integrator.c_str(), order_of(g), finest_order(g), seconds);
     }
 }
 
