@@ -46,23 +46,27 @@ Segment brute_force(const Classifier& c, double vf, double vb, double delta, boo
 }  // namespace
 
 TEST(Preintegrated, SegmentIntegralsMatchBruteForce) {
-    const Classifier c(spiky_tf(), 1.0);
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<double> v(-0.1, 1.1), d(0.05, 4.0);
-    std::vector<std::array<double, 2>> pairs = {{0.2, 0.8},   {0.8, 0.2},   {0.4, 0.4},
-                                                {0.44, 0.46}, {0.46, 0.44}, {0.505, 0.515},
-                                                {0.45, 0.45}, {0.0, 1.0},   {1.0, 0.0}};
-    for (int i = 0; i < 12; ++i) pairs.push_back({v(rng), v(rng)});
-    for (const auto& [vf, vb] : pairs) {
-        const double delta = d(rng);
-        for (bool full : {true, false}) {
-            const Segment got = preintegrate_scalar<Model::emission_absorption>(c, vf, vb, delta, full);
-            const Segment want = brute_force(c, vf, vb, delta, full);
-            // the brute force's own error at jumps is ~ jump·δ/m ≈ 5e−6
-            EXPECT_NEAR(got.transmittance, want.transmittance, 1e-5) << vf << " " << vb << " " << delta;
-            for (int k = 0; k < 3; ++k)
-                EXPECT_NEAR(got.radiance[k], want.radiance[k], 1e-5 * std::max(1.0, want.radiance[k]))
-                    << vf << " " << vb << " " << delta << (full ? " full" : " simple");
+    TransferFunction emissive = spiky_tf();  // associated emission: g = q (eq. (16) with q)
+    emissive.associated = true;
+    for (const auto& tf : {spiky_tf(), emissive}) {
+        const Classifier c(tf, 1.0);
+        std::mt19937 rng(7);
+        std::uniform_real_distribution<double> v(-0.1, 1.1), d(0.05, 4.0);
+        std::vector<std::array<double, 2>> pairs = {{0.2, 0.8},   {0.8, 0.2},   {0.4, 0.4},
+                                                    {0.44, 0.46}, {0.46, 0.44}, {0.505, 0.515},
+                                                    {0.45, 0.45}, {0.0, 1.0},   {1.0, 0.0}};
+        for (int i = 0; i < 12; ++i) pairs.push_back({v(rng), v(rng)});
+        for (const auto& [vf, vb] : pairs) {
+            const double delta = d(rng);
+            for (bool full : {true, false}) {
+                const Segment got = preintegrate_scalar<Model::emission_absorption>(c, vf, vb, delta, full);
+                const Segment want = brute_force(c, vf, vb, delta, full);
+                // the brute force's own error at jumps is ~ jump·δ/m ≈ 5e−6
+                EXPECT_NEAR(got.transmittance, want.transmittance, 1e-5) << vf << " " << vb << " " << delta;
+                for (int k = 0; k < 3; ++k)
+                    EXPECT_NEAR(got.radiance[k], want.radiance[k], 1e-5 * std::max(1.0, want.radiance[k]))
+                        << vf << " " << vb << " " << delta << (full ? " full" : " simple");
+            }
         }
     }
 }
