@@ -10,6 +10,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -24,6 +25,8 @@ enum class DType : std::uint8_t { u8, i8, u16, i16, u32, i32, f32, f64 };
 std::size_t dtype_size(DType t);
 /// Canonical name: "uint8", "int8", "uint16", "int16", "uint32", "int32", "float32", "float64".
 std::string_view dtype_name(DType t);
+/// A canonical name (also "float" and "double") → its type; nullopt when unknown.
+std::optional<DType> find_dtype(std::string_view name);
 /// Parses a canonical name (also "float" and "double"); throws Error(subject, ...) when unknown.
 DType parse_dtype(std::string_view name, const std::string& subject);
 

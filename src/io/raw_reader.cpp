@@ -31,25 +31,11 @@ void check_placement(const std::string& subject, const RawLayout& layout) {
 
 /// "uint16", "uint16be", "float32le", ... → type and byte order.
 std::optional<std::pair<DType, bool>> parse_type_token(std::string_view token) {
-    bool big = false;
-    if (token.ends_with("be") || token.ends_with("le")) {
-        big = token.ends_with("be");
-        token.remove_suffix(2);
-    }
-    static constexpr std::array<std::pair<std::string_view, DType>, 10> kTypes{{
-        {"uint8", DType::u8},
-        {"int8", DType::i8},
-        {"uint16", DType::u16},
-        {"int16", DType::i16},
-        {"uint32", DType::u32},
-        {"int32", DType::i32},
-        {"float32", DType::f32},
-        {"float64", DType::f64},
-        {"float", DType::f32},
-        {"double", DType::f64},
-    }};
-    for (const auto& [name, type] : kTypes)
-        if (token == name) return std::pair{type, big};
+    if (const auto type = find_dtype(token)) return std::pair{*type, false};  // "double" ends in "le" too
+    if (!token.ends_with("be") && !token.ends_with("le")) return std::nullopt;
+    const bool big = token.ends_with("be");
+    token.remove_suffix(2);
+    if (const auto type = find_dtype(token)) return std::pair{*type, big};
     return std::nullopt;
 }
 

@@ -34,7 +34,7 @@ std::string_view dtype_name(DType t) {
     return "float64";
 }
 
-DType parse_dtype(std::string_view name, const std::string& subject) {
+std::optional<DType> find_dtype(std::string_view name) {
     static constexpr std::array<std::pair<std::string_view, DType>, 10> kNames{{
         {"uint8", DType::u8},
         {"int8", DType::i8},
@@ -49,6 +49,11 @@ DType parse_dtype(std::string_view name, const std::string& subject) {
     }};
     for (const auto& [n, t] : kNames)
         if (n == name) return t;
+    return std::nullopt;
+}
+
+DType parse_dtype(std::string_view name, const std::string& subject) {
+    if (const auto t = find_dtype(name)) return *t;
     throw Error(subject, "unknown sample type '" + std::string(name) +
                              "' (expected uint8, int8, uint16, int16, uint32, int32, float32 or float64)");
 }

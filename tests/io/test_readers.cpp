@@ -130,6 +130,13 @@ TEST(RawReader, InfersLayoutFromName) {
     ASSERT_TRUE(b);
     EXPECT_EQ(b->dtype, DType::u16);
     EXPECT_TRUE(b->big_endian);
+    auto dbl = infer_raw_layout("x_2x2x2_double.raw");  // "double" ends in "le" but is no byte-order suffix
+    ASSERT_TRUE(dbl);
+    EXPECT_EQ(dbl->dtype, DType::f64);
+    EXPECT_FALSE(dbl->big_endian);
+    auto dbe = infer_raw_layout("x_2x2x2_doublebe.raw");
+    ASSERT_TRUE(dbe);
+    EXPECT_TRUE(dbe->big_endian);
     auto c = infer_raw_layout("x_10x20x30_float32.raw");
     ASSERT_TRUE(c);
     EXPECT_EQ(c->dtype, DType::f32);
