@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "fathom/io.h"
 
@@ -206,4 +207,21 @@ TEST(Cli, TfTableWritesPictureAndCsv) {
     EXPECT_EQ(
         fathom_cli("tf-table " + (d / "none.json").string() + " -o " + (d / "u.png").string(), d).status, 1);
     EXPECT_FALSE(fs::exists(d / "u.png"));
+}
+
+TEST(Cli, BenchReportsFrameTimesAsJson) {
+    TempDir d;
+    make_scene(d);
+    const CliRun r = fathom_cli("bench " + (d / "scene.json").string() +
+                                    " --frames 3 --width 16 --height 12 --json " + (d / "b.json").string(),
+                                d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream in(d / "b.json");
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j["frames"], 3);
+    EXPECT_EQ(j["frame_seconds"].size(), 3u);
+    EXPECT_EQ(j["width"], 16);
+    EXPECT_EQ(j["integrator"], "preintegrated");
+    EXPECT_GT(j["segments_per_second"].get<double>(), 0.0);
+    EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 0", d).status, 2);
 }

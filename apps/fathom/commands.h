@@ -13,5 +13,6 @@ struct UsageError : std::runtime_error {
 void add_render_command(CLI::App& app);
 void add_info_command(CLI::App& app);
 void add_tf_table_command(CLI::App& app);
+void add_bench_command(CLI::App& app);
 
 }  // namespace fathom::cli

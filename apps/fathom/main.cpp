@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
     fathom::cli::add_render_command(app);
     fathom::cli::add_info_command(app);
     fathom::cli::add_tf_table_command(app);
+    fathom::cli::add_bench_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -3,6 +3,7 @@
 // single-ray tracing for tools and tests.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -84,6 +85,9 @@ public:
     /// The whole image; tiles over threads; the result does not depend on
     /// the thread count.
     [[nodiscard]] Image render(const Camera& camera, const ProgressFn& progress = {}) const;
+    /// The number of segments (samples) the image's rays hold by eq. (8),
+    /// before early termination: the work measure of `fathom bench`.
+    [[nodiscard]] std::uint64_t count_segments(const Camera& camera) const;
 
     struct Impl;
 

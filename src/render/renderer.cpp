@@ -209,6 +209,20 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
     return img;
 }
 
+std::uint64_t Renderer::count_segments(const Camera& camera) const {
+    const RenderSettings& s = impl_->s;
+    std::uint64_t total = 0;
+    for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x) {
+            const Ray ray = camera.generate(x, y, s.width, s.height);
+            RaySpan span;
+            if (intersect_box(impl_->world_to_index * (ray.origin - impl_->origin),
+                              impl_->world_to_index * ray.dir, impl_->lattice->dims(), span))
+                total += static_cast<std::uint64_t>(segment_count(span.length(), impl_->h));
+        }
+    return total;
+}
+
 Bounds volume_bounds(const Volume& v) {
     const Vec3 last{static_cast<double>(v.dims()[0] - 1), static_cast<double>(v.dims()[1] - 1),
                     static_cast<double>(v.dims()[2] - 1)};

@@ -1,0 +1,104 @@
+// fathom bench: frame time of a scene (or a volume with a transfer function)
+// over several frames, the camera orbiting so that nothing is reused between
+// frames; median, min, pixels/s and segments/s, as text or JSON.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "fathom/io.h"
+
+#include "commands.h"
+#include "scene_args.h"
+
+namespace fathom::cli {
+namespace {
+
+struct BenchArgs {
+    SceneArgs scene;
+    int frames = 5;
+    double turn = 10.0;  // degrees of azimuth per frame
+    std::string json;
+};
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The camera of frame f: the scene's camera rotated about the box centre's
+// vertical (+z) axis by f·turn degrees.
+Camera frame_camera(const Camera& c, const Vec3& center, double degrees) {
+    const double a = degrees * 3.14159265358979323846 / 180.0, ca = std::cos(a), sa = std::sin(a);
+    auto rot = [&](const Vec3& v) { return Vec3{ca * v.x - sa * v.y, sa * v.x + ca * v.y, v.z}; };
+    Camera r = c;
+    r.position = center + rot(c.position - center);
+    r.forward = rot(c.forward);
+    r.right = rot(c.right);
+    r.up = rot(c.up);
+    return r;
+}
+
+void run_bench(const BenchArgs& a) {
+    if (a.frames < 1) throw UsageError("--frames must be at least 1");
+    const auto t_load = std::chrono::steady_clock::now();
+    const Scene sc = a.scene.load("bench");
+    const double load_s = seconds_since(t_load);
+    const Renderer r = sc.renderer();
+    const Vec3 center = volume_bounds(sc.volume).center;
+    std::vector<double> times;
+    std::uint64_t segments = 0;
+    for (int f = 0; f < a.frames; ++f) {
+        const Camera cam = frame_camera(sc.camera, center, f * a.turn);
+        segments += r.count_segments(cam);
+        const auto t0 = std::chrono::steady_clock::now();
+        const Image img = r.render(cam);
+        times.push_back(seconds_since(t0));
+    }
+    std::vector<double> sorted = times;
+    std::sort(sorted.begin(), sorted.end());
+    const double median = sorted[sorted.size() / 2], total = std::accumulate(times.begin(), times.end(), 0.0);
+    const double pixels = static_cast<double>(sc.settings.width) * sc.settings.height;
+    const int threads = sc.settings.threads > 0
+                            ? sc.settings.threads
+                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    nlohmann::json j{{"scene", a.scene.scene.empty() ? a.scene.volume : a.scene.scene},
+                     {"width", sc.settings.width},
+                     {"height", sc.settings.height},
+                     {"model", to_string(sc.settings.model)},
+                     {"integrator", to_string(sc.settings.integrator)},
+                     {"step", sc.settings.step},
+                     {"threads", threads},
+                     {"frames", a.frames},
+                     {"load_seconds", load_s},
+                     {"frame_seconds", times},
+                     {"median_seconds", median},
+                     {"min_seconds", sorted.front()},
+                     {"pixels_per_second", pixels / median},
+                     {"segments_per_second", static_cast<double>(segments) / total}};
+    std::printf(
+        "%s %dx%d %s step %g, %d threads: median %.3f s, min %.3f s (%d frames), %.3g pixels/s, %.3g "
+        "segments/s; load %.2f s\n",
+        j["scene"].get<std::string>().c_str(), sc.settings.width, sc.settings.height,
+        std::string(to_string(sc.settings.integrator)).c_str(), sc.settings.step, threads, median,
+        sorted.front(), a.frames, pixels / median, static_cast<double>(segments) / total, load_s);
+    if (!a.json.empty()) write_text_file(a.json, j.dump(2) + "\n");
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app) {
+    auto* cmd =
+        app.add_subcommand("bench", "Time the rendering of a scene over several frames (camera orbiting)");
+    auto a = std::make_shared<BenchArgs>();
+    a->scene.add_to(cmd);
+    cmd->add_option("--frames", a->frames, "Frames to time (default 5); the median is reported");
+    cmd->add_option("--turn", a->turn, "Degrees the camera orbits between frames (default 10)");
+    cmd->add_option("--json", a->json, "Also write the figures as JSON to this file");
+    cmd->callback([a] { run_bench(*a); });
+}
+
+}  // namespace fathom::cli

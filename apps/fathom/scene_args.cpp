@@ -1,0 +1,122 @@
+// Scene loading and render-flag overrides shared by `render` and `bench`.
+#include "scene_args.h"
+
+#include <filesystem>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "fathom/error.h"
+
+namespace fathom::cli {
+
+namespace fs = std::filesystem;
+
+std::vector<double> parse_numbers(const std::string& text, const std::string& flag) {
+    std::vector<double> out;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        try {
+            std::size_t used = 0;
+            out.push_back(std::stod(item, &used));
+            if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::exception&) {
+            throw UsageError(flag + ": '" + text + "' is not a comma-separated list of numbers");
+        }
+    }
+    return out;
+}
+
+namespace {
+
+// The no-scene form becomes a scene in memory, so both forms share one parser.
+std::string scene_from_flags(const SceneArgs& a) {
+    using nlohmann::json;
+    if (a.tf.empty() == a.preset.empty()) throw UsageError("--volume needs exactly one of --tf and --preset");
+    json tf = a.tf.empty() ? json{{"preset", a.preset}} : json{{"path", fs::absolute(a.tf).string()}};
+    json orbit = {{"azimuth", 45.0}, {"elevation", 30.0}};
+    if (!a.orbit.empty()) {
+        const auto v = parse_numbers(a.orbit, "--orbit");
+        if (v.size() < 2 || v.size() > 3) throw UsageError("--orbit expects AZ,EL[,DIST]");
+        orbit = {{"azimuth", v[0]}, {"elevation", v[1]}};
+        if (v.size() == 3) orbit["distance"] = v[2];
+    }
+    return json{{"format", "fathom-scene/1"},
+                {"volume", {{"path", fs::absolute(a.volume).string()}}},
+                {"transfer_function", tf},
+                {"camera", {{"orbit", orbit}}}}
+        .dump();
+}
+
+void apply_overrides(RenderSettings& s, const SceneArgs& a) {
+    const std::string flag = "command line";
+    if (a.o_width->count()) s.width = a.width;
+    if (a.o_height->count()) s.height = a.height;
+    if (!a.model.empty()) s.model = parse_model(a.model, flag);
+    if (!a.integrator.empty()) s.integrator = parse_integrator(a.integrator, flag);
+    if (!a.order.empty()) s.order = parse_order(a.order, flag);
+    if (!a.sample_point.empty()) s.sample_point = parse_sample_point(a.sample_point, flag);
+    if (!a.step_unit.empty()) s.step_world = a.step_unit == "world";
+    if (a.o_step->count()) s.step = a.step;
+    if (a.o_termination->count()) s.termination = a.termination;
+    if (a.o_threads->count()) s.threads = a.threads;
+    if (!a.background.empty()) {
+        if (a.background == "transparent") {
+            s.transparent = true;
+        } else {
+            const auto v = parse_numbers(a.background, "--background");
+            if (v.size() != 3) throw UsageError("--background expects R,G,B or 'transparent'");
+            s.background = Rgb{v[0], v[1], v[2]};
+            s.transparent = false;
+        }
+    }
+    s.validate();
+}
+
+}  // namespace
+
+void SceneArgs::add_to(CLI::App* cmd) {
+    cmd->add_option("scene", this->scene, "Scene file (fathom-scene/1 JSON)");
+    cmd->add_option("--volume", this->volume, "Volume file (no-scene form)");
+    cmd->add_option("--tf", this->tf, "Transfer function file (fathom-tf/1 JSON), with --volume");
+    cmd->add_option(
+        "--preset", this->preset,
+        "Transfer function preset, with --volume: ct-bone, ct-skin, ct-soft-tissue, mr-default, grayscale");
+    cmd->add_option(
+        "--orbit", this->orbit,
+        "Orbit camera AZ,EL[,DIST] in degrees (distance in half box diagonals, default 3), with --volume");
+    this->o_width = cmd->add_option("--width", this->width, "Image width in pixels (default 512)");
+    this->o_height = cmd->add_option("--height", this->height, "Image height in pixels (default 512)");
+    cmd->add_option("--model", this->model, "emission-absorption (default), absorption, emission or mip");
+    cmd->add_option("--integrator", this->integrator,
+                    "preintegrated (default), preintegrated-simple, alpha, riemann or reference");
+    this->o_step = cmd->add_option("--step", this->step,
+                                   "Step: in voxels (smallest spacing) by default, see --step-unit");
+    cmd->add_option("--step-unit", this->step_unit, "voxel (default) or world")
+        ->check(CLI::IsMember({"voxel", "world"}));
+    cmd->add_option("--sample-point", this->sample_point, "near (default) or mid");
+    cmd->add_option("--order", this->order, "front-to-back (default) or back-to-front");
+    this->o_termination = cmd->add_option("--termination", this->termination,
+                                          "Early-termination threshold on T (default 0.001; 0 never stops)");
+    cmd->add_option("--background", this->background, "R,G,B or 'transparent'");
+    this->o_threads = cmd->add_option("--threads", this->threads, "Threads (default: all cores)")
+                          ->check(CLI::NonNegativeNumber);
+}
+
+Scene SceneArgs::load(const std::string& command) const {
+    if (scene.empty() == volume.empty())
+        throw UsageError(command + " needs either a SCENE file or --volume (not both)");
+    if (!scene.empty() && (!tf.empty() || !preset.empty() || !orbit.empty()))
+        throw UsageError("--tf, --preset and --orbit go with --volume, not with a scene file");
+    Scene sc =
+        scene.empty() ? parse_scene(scene_from_flags(*this), fs::current_path(), volume) : load_scene(scene);
+    try {
+        apply_overrides(sc.settings, *this);
+    } catch (const Error& e) {
+        throw UsageError(e.reason());
+    }
+    return sc;
+}
+
+}  // namespace fathom::cli

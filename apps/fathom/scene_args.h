@@ -1,0 +1,31 @@
+// The scene part of the command line, shared by `render` and `bench`: a
+// scene file or --volume with --tf/--preset/--orbit, and the render flags
+// that override it (SPEC §8).
+#pragma once
+
+#include <string>
+
+#include "fathom/scene.h"
+
+#include "commands.h"
+
+namespace fathom::cli {
+
+struct SceneArgs {
+    std::string scene, volume, tf, preset, orbit, background;
+    int width = 0, height = 0, threads = 0;
+    std::string model, integrator, order, sample_point, step_unit;
+    double step = 0, termination = 0;
+    CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_termination{}, *o_threads{};
+
+    /// Registers the positional SCENE and every scene/render flag on `cmd`.
+    void add_to(CLI::App* cmd);
+    /// Loads the scene (file or flags) and applies the overrides; usage
+    /// mistakes throw UsageError, bad files fathom::Error.
+    [[nodiscard]] Scene load(const std::string& command) const;
+};
+
+/// "1,2.5,3" → numbers; UsageError naming the flag otherwise.
+std::vector<double> parse_numbers(const std::string& text, const std::string& flag);
+
+}  // namespace fathom::cli
