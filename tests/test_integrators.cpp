@@ -266,3 +266,26 @@ TEST(Integrators, MipOfOneBrightVoxelIsItsColor) {
     EXPECT_DOUBLE_EQ(r.radiance[2], 0.8);
     EXPECT_DOUBLE_EQ(r.alpha, 1.0);
 }
+
+TEST(Integrators, MinipAndAverageProjections) {
+    // v = x along the ray: min 0, max 8, trapezoidal mean 4 (exact for a linear v)
+    Volume vol = make_volume(9, 3, 3, [](double x, double, double) { return x; });
+    TransferFunction tf = extinction_tf({{0.0, 0.0}}, {0, 0, 0});
+    tf.color_points = {{0.0, {0, 0, 0}}, {8.0, {0.8, 0.4, 1.6}}};
+    const Ray ray{{-2.0, 1.0, 1.0}, {1.0, 0.0, 0.0}};
+    auto s = settings(IntegratorKind::alpha, SamplePoint::near, 0.7);
+    s.model = Model::average;
+    EXPECT_NEAR(Renderer(vol, tf, s).trace(ray).radiance[0], 0.4, 1e-12);
+    s.model = Model::minip;
+    EXPECT_DOUBLE_EQ(Renderer(vol, tf, s).trace(ray).radiance[2], 0.0);
+    s.model = Model::mip;
+    EXPECT_DOUBLE_EQ(Renderer(vol, tf, s).trace(ray).radiance[2], 1.6);
+    // one dark voxel in a bright volume: minip shows its color
+    Volume bright = make_volume(7, 7, 7, [](double, double, double) { return 8.0; });
+    bright.set_value(3, 4, 2, 2.0);
+    s.model = Model::minip;
+    s.step = 0.5;
+    const RayResult r = Renderer(bright, tf, s).trace({{3.0, 4.0, -1.0}, {0, 0, 1}});
+    EXPECT_DOUBLE_EQ(r.radiance[0], 0.2);
+    EXPECT_DOUBLE_EQ(r.alpha, 1.0);
+}

@@ -18,7 +18,9 @@
 
 namespace fathom {
 
-enum class Model { emission_absorption, absorption, emission, mip };
+/// The optical models of SPEC §1, and projection modes over the scalar
+/// (mip, minip, average), which need a scalar volume.
+enum class Model { emission_absorption, absorption, emission, mip, minip, average };
 enum class IntegratorKind { riemann, alpha, reference, preintegrated, preintegrated_simple };
 enum class SamplePoint { near, mid };
 enum class Order { front_to_back, back_to_front };

@@ -73,17 +73,26 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     throw Error("integrator", "unknown integrator");
 }
 
-// eq. (23): the largest scalar over the n + 1 segment ends.
-template <class T>
-Tracer mip_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
+// Projection modes over the scalar at the n + 1 segment ends: mip (eq. (23),
+// the largest), minip (the smallest), average (the trapezoidal mean along the
+// ray, exact where v is linear along it); I = c(v) (q(v) for an emission TF),
+// α = 1 where the ray meets the box.
+template <Model M, class T>
+Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const double h = im.h;
     return [med, h](const RaySpan& sp) {
         const std::int64_t n = segment_count(sp.length(), h);
         const double delta = sp.length() / static_cast<double>(n);
-        double vmax = med.scalar(sp.at(sp.t_near));
-        for (std::int64_t i = 1; i <= n; ++i)
-            vmax = std::max(vmax, med.scalar(sp.at(sp.t_near + static_cast<double>(i) * delta)));
-        return RayResult{med.tf->color(vmax), 1.0};
+        const double first = med.scalar(sp.at(sp.t_near));
+        double v = M == Model::average ? 0.5 * first : first;
+        for (std::int64_t i = 1; i <= n; ++i) {
+            const double s = med.scalar(sp.at(sp.t_near + static_cast<double>(i) * delta));
+            if constexpr (M == Model::mip) v = std::max(v, s);
+            if constexpr (M == Model::minip) v = std::min(v, s);
+            if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
+        }
+        if constexpr (M == Model::average) v /= static_cast<double>(n);
+        return RayResult{med.tf->color(v), 1.0};
     };
 }
 
@@ -97,10 +106,16 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
         case Model::emission:
             return integrator_tracer<Model::emission>(med, im);
         case Model::mip:
-            if constexpr (Medium::kHasScalar) return mip_tracer(med, im);
+            if constexpr (Medium::kHasScalar) return projection_tracer<Model::mip>(med, im);
+            break;
+        case Model::minip:
+            if constexpr (Medium::kHasScalar) return projection_tracer<Model::minip>(med, im);
+            break;
+        case Model::average:
+            if constexpr (Medium::kHasScalar) return projection_tracer<Model::average>(med, im);
             break;
     }
-    throw Error("model 'mip'",
+    throw Error("model '" + std::string(to_string(im.s.model)) + "'",
                 "needs a scalar volume with a transfer function (pre-classified grids are refused)");
 }
 

@@ -28,11 +28,13 @@ std::string_view enum_name(E e, const std::array<std::pair<std::string_view, E>,
     return "?";
 }
 
-constexpr std::array<std::pair<std::string_view, Model>, 4> kModels{{
+constexpr std::array<std::pair<std::string_view, Model>, 6> kModels{{
     {"emission-absorption", Model::emission_absorption},
     {"absorption", Model::absorption},
     {"emission", Model::emission},
     {"mip", Model::mip},
+    {"minip", Model::minip},
+    {"average", Model::average},
 }};
 constexpr std::array<std::pair<std::string_view, IntegratorKind>, 5> kIntegrators{{
     {"riemann", IntegratorKind::riemann},
