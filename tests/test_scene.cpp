@@ -154,3 +154,17 @@ TEST(Scene, ExampleScenesLoadAndRender) {
         EXPECT_GT(sum, 0.0f) << name;
     }
 }
+
+TEST(Scene, JitterKeys) {
+    TempDir d;
+    raw_volume(d);
+    const std::string vol = R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})";
+    const Scene sc =
+        parse_scene(scene_with(vol, R"(, "render": {"jitter": true, "jitter_seed": 12})"), d.path(), "s");
+    EXPECT_TRUE(sc.settings.jitter);
+    EXPECT_EQ(sc.settings.jitter_seed, 12u);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"jitter": 1})"), d.path()).find("jitter"),
+              std::string::npos);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"jitter_seed": -1})"), d.path()).find("jitter_seed"),
+              std::string::npos);
+}

@@ -61,6 +61,8 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
     if (a.o_step->count()) s.step = a.step;
     if (a.o_termination->count()) s.termination = a.termination;
     if (a.o_threads->count()) s.threads = a.threads;
+    if (a.jitter) s.jitter = true;
+    if (a.o_seed->count()) s.jitter_seed = a.jitter_seed;
     if (!a.background.empty()) {
         if (a.background == "transparent") {
             s.transparent = true;
@@ -102,6 +104,9 @@ void SceneArgs::add_to(CLI::App* cmd) {
     cmd->add_option("--background", this->background, "R,G,B or 'transparent'");
     this->o_threads = cmd->add_option("--threads", this->threads, "Threads (default: all cores)")
                           ->check(CLI::NonNegativeNumber);
+    cmd->add_flag("--jitter", this->jitter,
+                  "Hashed per-pixel sample offsets for riemann/alpha (wood-grain to noise)");
+    this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
 }
 
 Scene SceneArgs::load(const std::string& command) const {

@@ -16,6 +16,9 @@ struct SceneArgs {
     int width = 0, height = 0, threads = 0;
     std::string model, integrator, order, sample_point, step_unit;
     double step = 0, termination = 0;
+    bool jitter = false;
+    std::uint32_t jitter_seed = 0;
+    CLI::Option* o_seed{};
     CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_termination{}, *o_threads{};
 
     /// Registers the positional SCENE and every scene/render flag on `cmd`.

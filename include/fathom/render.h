@@ -50,6 +50,10 @@ struct RenderSettings {
     std::optional<Rgb> background;
     bool transparent = false;  // background "transparent": I_bg = 0, PNG gets alpha
     int threads = 0;           // 0: all hardware threads
+    /// Jitter: each pixel's riemann/alpha samples sit at a hashed offset in
+    /// their segments instead of sample_point (wood-grain becomes fine noise).
+    bool jitter = false;
+    std::uint32_t jitter_seed = 0;
     /// Accuracy goal of the reference integrator (per channel, absolute for
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;

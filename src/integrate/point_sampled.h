@@ -10,11 +10,12 @@
 namespace fathom {
 
 template <Model M, class Medium, class Rule>
-RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, const RenderSettings& s, double h,
-                                  const Rgb& bg, Rule&& rule) {
+RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, const RenderSettings& s,
+                                  double h, const Rgb& bg, Rule&& rule) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
-    const double offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
+    const double offset =
+        span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
     return composite(n, s.order, s.termination, bg, [&](std::int64_t i) {
         const double t = span.t_near + (static_cast<double>(i - 1) + offset) * delta;  // eq. (8)
         MediumSample m = medium.at(span.at(t));

@@ -15,6 +15,9 @@ namespace fathom {
 struct RaySpan {
     double t_near = 0, t_far = 0;
     Vec3 p0, dp;
+    /// Jitter: where in its segment the point-sampled quadratures sample
+    /// (fraction in [0, 1)), or < 0 to follow the sample_point setting.
+    double sample_offset = -1.0;
     [[nodiscard]] Vec3 at(double t) const { return p0 + dp * t; }
     [[nodiscard]] double length() const { return t_far - t_near; }
 };

@@ -212,7 +212,7 @@ int positive_int(const json& j, const std::string& where, const Ctx& cx) {
 void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
     only_keys(j,
               {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
-               "termination", "background"},
+               "termination", "background", "jitter", "jitter_seed"},
               "'render'", cx);
     if (j.contains("width")) s.width = positive_int(j["width"], "render 'width'", cx);
     if (j.contains("height")) s.height = positive_int(j["height"], "render 'height'", cx);
@@ -230,6 +230,16 @@ void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
             parse_sample_point(string(j["sample_point"], "render 'sample_point'", cx), cx.subject);
     if (j.contains("order")) s.order = parse_order(string(j["order"], "render 'order'", cx), cx.subject);
     if (j.contains("termination")) s.termination = number(j["termination"], "render 'termination'", cx);
+    if (j.contains("jitter")) {
+        if (!j["jitter"].is_boolean()) cx.fail("render 'jitter' must be true or false");
+        s.jitter = j["jitter"].get<bool>();
+    }
+    if (j.contains("jitter_seed")) {
+        const double seed = number(j["jitter_seed"], "render 'jitter_seed'", cx);
+        if (seed < 0 || seed > 4294967295.0 || seed != std::floor(seed))
+            cx.fail("render 'jitter_seed' must be an integer in 0..4294967295");
+        s.jitter_seed = static_cast<std::uint32_t>(seed);
+    }
     if (j.contains("background")) {
         const json& b = j["background"];
         if (b.is_string()) {

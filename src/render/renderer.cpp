@@ -30,16 +30,30 @@ struct Renderer::Impl {
     Rgb bg{};
     Tracer tracer;
 
-    [[nodiscard]] RayResult trace(const Ray& ray) const {
+    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
         const Vec3 p0 = world_to_index * (ray.origin - origin);
         const Vec3 dp = world_to_index * ray.dir;
         RaySpan span;
         if (!intersect_box(p0, dp, lattice->dims(), span)) return {bg, 0.0};
+        span.sample_offset = sample_offset;
         return tracer(span);
     }
 };
 
 namespace {
+
+/// A per-pixel offset in [0, 1), a hash of (x, y, seed): deterministic and
+/// independent of the thread count (a 32-bit integer hash, "lowbias32").
+double jitter_offset(int x, int y, std::uint32_t seed) {
+    std::uint32_t h = static_cast<std::uint32_t>(x) * 0x9E3779B1u ^
+                      static_cast<std::uint32_t>(y) * 0x85EBCA77u ^ seed * 0xC2B2AE3Du;
+    h ^= h >> 16;
+    h *= 0x7FEB352Du;
+    h ^= h >> 15;
+    h *= 0x846CA68Bu;
+    h ^= h >> 16;
+    return static_cast<double>(h) / 4294967296.0;
+}
 
 void check_lattice(const Volume& v, const std::string& what) {
     for (auto d : v.dims())
@@ -200,7 +214,8 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
                 const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
                 for (int y = y0; y < std::min(y0 + kTile, s.height); ++y)
                     for (int x = x0; x < std::min(x0 + kTile, s.width); ++x) {
-                        const RayResult r = impl_->trace(camera.generate(x, y, s.width, s.height));
+                        const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
+                        const RayResult r = impl_->trace(camera.generate(x, y, s.width, s.height), offset);
                         float* p = img.pixel(x, y);
                         for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
                         p[3] = static_cast<float>(r.alpha);
