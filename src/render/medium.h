@@ -19,7 +19,13 @@ struct ScalarMedium {
     const Classifier* tf = nullptr;
 
     [[nodiscard]] double scalar(const Vec3& p) const { return grid(p); }
-    [[nodiscard]] MediumSample classify(double v) const { return {tf->sigma(v), tf->source(v)}; }
+    /// σ(v) and g(v), evaluating σ once (g = σ·c, or q when associated).
+    [[nodiscard]] MediumSample classify(double v) const {
+        MediumSample m{tf->sigma(v), tf->color(v)};
+        if (!tf->associated())
+            for (double& c : m.source) c *= m.sigma;
+        return m;
+    }
     [[nodiscard]] MediumSample at(const Vec3& p) const { return classify(scalar(p)); }
     /// What pre-integration needs at a segment end: the scalar.
     [[nodiscard]] double end_sample(const Vec3& p) const { return scalar(p); }
