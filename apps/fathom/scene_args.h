@@ -17,6 +17,7 @@ struct SceneArgs {
     std::string model, integrator, order, sample_point, step_unit;
     double step = 0, termination = 0;
     bool jitter = false;
+    bool no_skip_empty = false;
     std::uint32_t jitter_seed = 0;
     CLI::Option* o_seed{};
     CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_termination{}, *o_threads{};

@@ -57,6 +57,9 @@ struct RenderSettings {
     /// Accuracy goal of the reference integrator (per channel, absolute for
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;
+    /// Exact empty-space skipping (macrocells where the medium is exactly
+    /// zero; the image is unchanged bit for bit). Off only to measure it.
+    bool skip_empty = true;
 
     /// I_bg as the contract resolves it.
     [[nodiscard]] Rgb background_radiance() const;

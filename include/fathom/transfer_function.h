@@ -39,6 +39,11 @@ public:
     [[nodiscard]] const std::vector<double>& knots() const { return v_; }
     [[nodiscard]] const std::vector<Value>& values() const { return y_; }
     [[nodiscard]] bool empty() const { return v_.empty(); }
+    /// True when every piece that values in [a, b] select has both of its
+    /// defining values exactly 0 in every component, so that the function
+    /// (and each one-sided limit) is exactly 0 wherever it is evaluated on
+    /// [a, b]. Conservative: false for NaN bounds or an empty function.
+    [[nodiscard]] bool zero_on(double a, double b) const;
 
 private:
     std::vector<double> v_;
@@ -90,6 +95,10 @@ public:
         return c;
     }
     [[nodiscard]] bool associated() const { return associated_; }
+    /// σ is exactly 0 on [a, b] (PiecewiseLinear::zero_on).
+    [[nodiscard]] bool sigma_zero_on(double a, double b) const { return sigma_.zero_on(a, b); }
+    /// c (or q) is exactly 0 on [a, b].
+    [[nodiscard]] bool color_zero_on(double a, double b) const { return color_.zero_on(a, b); }
     [[nodiscard]] const PiecewiseLinear<1>& sigma_function() const { return sigma_; }
     [[nodiscard]] const PiecewiseLinear<3>& color_function() const { return color_; }
     /// Every control value of σ and of the color, sorted, without duplicates:

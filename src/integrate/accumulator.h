@@ -21,12 +21,25 @@ struct Segment {
     Rgb radiance;          // C_i
 };
 
-template <class SegmentFn>
-RayResult composite(std::int64_t n, Order order, double termination, const Rgb& bg, SegmentFn&& segment) {
+/// No empty-space skipping: every segment is evaluated.
+struct NoSkip {
+    std::int64_t operator()(std::int64_t /*i*/, int /*dir*/) { return 0; }
+};
+
+/// skip(i, dir) → k ≥ 0: segments i, i + dir, …, i + (k − 1)·dir are known
+/// to have transmittance exactly 1 and radiance exactly 0, so they leave both
+/// accumulators unchanged and are not evaluated (render/empty_space.h).
+template <class SegmentFn, class Skip = NoSkip>
+RayResult composite(std::int64_t n, Order order, double termination, const Rgb& bg, SegmentFn&& segment,
+                    Skip&& skip = {}) {
     RayResult r;
     double T = 1.0;
     if (order == Order::front_to_back) {
-        for (std::int64_t i = 1; i <= n; ++i) {
+        for (std::int64_t i = 1; i <= n;) {
+            if (const std::int64_t k = skip(i, +1)) {
+                i += k;
+                continue;
+            }
             const Segment s = segment(i);
             for (int c = 0; c < 3; ++c) r.radiance[c] += T * s.radiance[c];
             T *= s.transmittance;
@@ -34,14 +47,20 @@ RayResult composite(std::int64_t n, Order order, double termination, const Rgb& 
                 r.alpha = 1.0 - T;
                 return r;
             }
+            ++i;
         }
         for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
     } else {
         r.radiance = bg;
-        for (std::int64_t i = n; i >= 1; --i) {
+        for (std::int64_t i = n; i >= 1;) {
+            if (const std::int64_t k = skip(i, -1)) {
+                i -= k;
+                continue;
+            }
             const Segment s = segment(i);
             for (int c = 0; c < 3; ++c) r.radiance[c] = s.transmittance * r.radiance[c] + s.radiance[c];
             T *= s.transmittance;
+            --i;
         }
     }
     r.alpha = 1.0 - T;

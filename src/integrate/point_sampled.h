@@ -6,21 +6,29 @@
 
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
+#include "render/empty_space.h"
 
 namespace fathom {
 
 template <Model M, class Medium, class Rule>
 RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, const RenderSettings& s,
-                                  double h, const Rgb& bg, Rule&& rule) {
+                                  double h, const Rgb& bg, const EmptySpace* es, Rule&& rule) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
     const double offset =
         span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
-    return composite(n, s.order, s.termination, bg, [&](std::int64_t i) {
-        const double t = span.t_near + (static_cast<double>(i - 1) + offset) * delta;  // eq. (8)
-        MediumSample m = medium.at(span.at(t));
+    const SampleGrid grid{&span, delta, offset, 1};  // eq. (8): segment i sampled at t_{i−1} + offset·δ
+    auto segment = [&](std::int64_t i) {
+        MediumSample m = medium.at(grid.at(i));
         apply_model<M>(m.sigma, m.source);
         return rule(m, delta);
+    };
+    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
+    // A sample in an empty macrocell gives (1, 0): skip the run of them.
+    RunFinder runs(*es, grid);
+    return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) {
+        const std::int64_t k = runs.run(i, dir, dir > 0 ? n : 1);
+        return dir * (k - i) + 1;
     });
 }
 

@@ -23,6 +23,7 @@
 
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
+#include "render/empty_space.h"
 
 namespace fathom {
 namespace preint {
@@ -153,12 +154,14 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
 }
 
 /// The integrator: samples the n + 1 segment ends once each (a two-slot
-/// cache serves both orders) and composites the segments.
+/// cache serves both orders) and composites the segments. With `es`, runs of
+/// segments whose two ends lie in one empty macrocell are skipped (exact).
 template <Model M, class Medium>
 RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
-                                  double h, const Rgb& bg, bool full) {
+                                  double h, const Rgb& bg, bool full, const EmptySpace* es) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
+    const SampleGrid grid{&span, delta, 0.0, 0};  // end j at t_near + j·δ
     using End = decltype(medium.end_sample(Vec3{}));
     std::array<std::int64_t, 2> idx{-1, -1};
     std::array<End, 2> val{};
@@ -169,16 +172,26 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         const int slot = older;
         older ^= 1;
         idx[slot] = j;
-        val[slot] = medium.end_sample(span.at(span.t_near + static_cast<double>(j) * delta));
+        val[slot] = medium.end_sample(grid.at(j));
         return val[slot];
     };
-    return composite(n, s.order, s.termination, bg, [&](std::int64_t i) {
+    auto segment = [&](std::int64_t i) {
         const End f = end(i - 1), b = end(i);
         if constexpr (Medium::kHasScalar) {
             return preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
         } else {
             return preintegrate_grid<M>(f.sigma, f.color, b.sigma, b.color, delta, full);
         }
+    };
+    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
+    RunFinder runs(*es, grid);
+    return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) -> std::int64_t {
+        if (dir > 0) {  // ends i−1..k in one empty macrocell: segments i..k are zero
+            const std::int64_t k = runs.run(i - 1, +1, n);
+            return std::max<std::int64_t>(0, k - i + 1);
+        }
+        const std::int64_t k = runs.run(i, -1, 0);  // ends k..i: segments k+1..i
+        return std::max<std::int64_t>(0, i - k);
     });
 }
 

@@ -14,6 +14,7 @@
 #include "integrate/preintegrated.h"
 #include "integrate/reference.h"
 #include "integrate/riemann.h"
+#include "render/empty_space.h"
 #include "render/medium.h"
 
 namespace fathom {
@@ -28,7 +29,13 @@ struct Renderer::Impl {
     Vec3 origin;
     double h = 0;  // step in world units
     Rgb bg{};
+    EmptySpace empty_space;
     Tracer tracer;
+
+    /// The macrocells to skip, or nullptr when skipping is off or useless.
+    [[nodiscard]] const EmptySpace* skipper() const {
+        return s.skip_empty && empty_space.any() ? &empty_space : nullptr;
+    }
 
     [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
         const Vec3 p0 = world_to_index * (ray.origin - origin);
@@ -65,11 +72,15 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     const RenderSettings& s = im.s;
     const double h = im.h;
     const Rgb bg = im.bg;
+    const EmptySpace* es = im.skipper();
     switch (s.integrator) {
         case IntegratorKind::riemann:
-            return [med, s, h, bg](const RaySpan& sp) { return integrate_riemann<M>(med, sp, s, h, bg); };
+            return [med, s, h, bg, es](const RaySpan& sp) {
+                return integrate_riemann<M>(med, sp, s, h, bg, es);
+            };
         case IntegratorKind::alpha:
-            return [med, s, h, bg](const RaySpan& sp) { return integrate_alpha<M>(med, sp, s, h, bg); };
+            return
+                [med, s, h, bg, es](const RaySpan& sp) { return integrate_alpha<M>(med, sp, s, h, bg, es); };
         case IntegratorKind::reference: {
             const std::vector<double>* breaks = &im.tf.breakpoints();
             return [med, s, bg, breaks](const RaySpan& sp) {
@@ -79,8 +90,8 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
         case IntegratorKind::preintegrated:
         case IntegratorKind::preintegrated_simple: {
             const bool full = s.integrator == IntegratorKind::preintegrated;
-            return [med, s, h, bg, full](const RaySpan& sp) {
-                return integrate_preintegrated<M>(med, sp, s, h, bg, full);
+            return [med, s, h, bg, full, es](const RaySpan& sp) {
+                return integrate_preintegrated<M>(med, sp, s, h, bg, full, es);
             };
         }
     }
@@ -153,6 +164,8 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
                     "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
     setup(*impl_, volume);
     impl_->tf = Classifier(tf, volume.smallest_spacing());
+    if (impl_->s.skip_empty)
+        impl_->empty_space = EmptySpace::for_scalar(volume, impl_->tf, impl_->s.model, impl_->s.threads);
     impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
         ScalarMedium<T> med{GridSampler<T>(volume), &impl_->tf};
         return make_tracer(med, *impl_);
@@ -171,6 +184,7 @@ Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings se
     if (!is_float(density.dtype()) || !is_float(color.dtype()))
         throw Error("pre-classified grids", "density and color must be float32 or float64");
     setup(*impl_, density);
+    if (impl_->s.skip_empty) impl_->empty_space = EmptySpace::for_density(density, impl_->s.threads);
     impl_->tracer = visit_dtype(density.dtype(), [&]<class D>(D*) -> Tracer {
         if constexpr (std::is_floating_point_v<D>) {
             return visit_dtype(color.dtype(), [&]<class C>(C*) -> Tracer {

@@ -42,6 +42,23 @@ typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::on_piece(std::size_t p, d
     return r;
 }
 
+template <int N>
+bool PiecewiseLinear<N>::zero_on(double a, double b) const {
+    if (v_.empty() || !(a <= b)) return false;
+    auto zero = [](const Value& y) {
+        for (double c : y)
+            if (c != 0.0) return false;
+        return true;
+    };
+    const std::size_t last = piece(b);
+    for (std::size_t p = piece(a); p <= last; ++p) {
+        if (p == 0 && !zero(y_.front())) return false;
+        if (p >= v_.size() && !zero(y_.back())) return false;
+        if (p > 0 && p < v_.size() && !(zero(y_[p - 1]) && zero(y_[p]))) return false;
+    }
+    return true;
+}
+
 template class PiecewiseLinear<1>;
 template class PiecewiseLinear<3>;
 

@@ -1,0 +1,116 @@
+#include "render/empty_space.h"
+
+#include <atomic>
+#include <limits>
+#include <thread>
+
+namespace fathom {
+namespace {
+
+struct Range {
+    double lo = std::numeric_limits<double>::infinity();
+    double hi = -std::numeric_limits<double>::infinity();
+    bool nan = false;
+};
+
+/// The node range of every macrocell of component 0 of `v`, macrocell
+/// slabs (fixed z) spread over threads.
+std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64_t, 3>& md, int threads) {
+    const auto& n = v.dims();
+    const std::int64_t comps = v.components();
+    std::vector<Range> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
+    visit_dtype(v.dtype(), [&]<class T>(T*) {
+        const T* data = v.data<T>();
+        std::atomic<std::int64_t> next{0};
+        auto worker = [&] {
+            for (std::int64_t mz = next++; mz < md[2]; mz = next++) {
+                const std::int64_t z0 = mz * EmptySpace::kCells,
+                                   z1 = std::min(z0 + EmptySpace::kCells, n[2] - 1);
+                for (std::int64_t my = 0; my < md[1]; ++my) {
+                    const std::int64_t y0 = my * EmptySpace::kCells,
+                                       y1 = std::min(y0 + EmptySpace::kCells, n[1] - 1);
+                    for (std::int64_t mx = 0; mx < md[0]; ++mx) {
+                        const std::int64_t x0 = mx * EmptySpace::kCells,
+                                           x1 = std::min(x0 + EmptySpace::kCells, n[0] - 1);
+                        Range r;
+                        for (std::int64_t z = z0; z <= z1; ++z)
+                            for (std::int64_t y = y0; y <= y1; ++y) {
+                                const T* row = data + (n[0] * (y + n[1] * z)) * comps;
+                                for (std::int64_t x = x0; x <= x1; ++x) {
+                                    const double s = static_cast<double>(row[x * comps]);
+                                    if (s != s) r.nan = true;
+                                    r.lo = std::min(r.lo, s);
+                                    r.hi = std::max(r.hi, s);
+                                }
+                            }
+                        out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = r;
+                    }
+                }
+            }
+        };
+        const int nt = std::max(1, std::min<int>(threads, static_cast<int>(md[2])));
+        std::vector<std::thread> pool;
+        for (int i = 1; i < nt; ++i) pool.emplace_back(worker);
+        worker();
+        for (auto& t : pool) t.join();
+    });
+    return out;
+}
+
+std::array<std::int64_t, 3> macro_dims(const Volume& v) {
+    std::array<std::int64_t, 3> md{};
+    for (int a = 0; a < 3; ++a) md[a] = (v.dims()[a] - 2) / EmptySpace::kCells + 1;  // cells n−1, rounded up
+    return md;
+}
+
+int resolve_threads(int threads) {
+    return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+}  // namespace
+
+EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int threads) {
+    EmptySpace es;
+    if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return es;
+    es.nodes_ = v.dims();
+    es.mdims_ = macro_dims(v);
+    const auto ranges = macrocell_ranges(v, es.mdims_, resolve_threads(threads));
+    es.empty_.resize(ranges.size());
+    for (std::size_t i = 0; i < ranges.size(); ++i) {
+        const Range& r = ranges[i];
+        if (r.nan) continue;
+        const bool no_sigma = tf.sigma_zero_on(r.lo, r.hi);
+        // g = σ·c (zero with σ or c) or q.
+        const bool no_source =
+            tf.associated() ? tf.color_zero_on(r.lo, r.hi) : no_sigma || tf.color_zero_on(r.lo, r.hi);
+        const bool e = m == Model::absorption ? no_sigma
+                       : m == Model::emission ? no_source
+                                              : no_sigma && no_source;
+        es.empty_[i] = e ? 1 : 0;
+        es.any_ = es.any_ || e;
+    }
+    return es;
+}
+
+EmptySpace EmptySpace::for_density(const Volume& density, int threads) {
+    EmptySpace es;
+    es.nodes_ = density.dims();
+    es.mdims_ = macro_dims(density);
+    const auto ranges = macrocell_ranges(density, es.mdims_, resolve_threads(threads));
+    es.empty_.resize(ranges.size());
+    for (std::size_t i = 0; i < ranges.size(); ++i) {
+        const bool e = !ranges[i].nan && ranges[i].lo == 0.0 && ranges[i].hi == 0.0;
+        es.empty_[i] = e ? 1 : 0;
+        es.any_ = es.any_ || e;
+    }
+    return es;
+}
+
+double EmptySpace::empty_fraction() const {
+    if (empty_.empty()) return 0.0;
+    std::size_t n = 0;
+    for (auto e : empty_) n += e;
+    return static_cast<double>(n) / static_cast<double>(empty_.size());
+}
+
+}  // namespace fathom

@@ -1,0 +1,152 @@
+// Exact empty-space skipping (docs/performance.md "Empty-space skipping").
+//
+// The lattice's cells are grouped into macrocells of kCells³ cells. A
+// macrocell holds the range [min, max] of its nodes (its boundary nodes
+// included), which bounds every trilinear sample inside it. It is *empty*
+// when the medium is exactly zero over that range under the frame's model:
+// σ = 0 (absorption), g = 0 (emission), both (emission–absorption); for
+// pre-classified grids, when every density node is exactly 0.
+//
+// A sample inside an empty macrocell gives a segment with transmittance
+// exactly 1 and radiance exactly 0, which leaves both accumulators unchanged
+// bit for bit; so does a pre-integrated segment whose two ends lie in one
+// empty macrocell (the linear ramp between them stays in its range). The
+// integrators therefore skip such runs of samples without changing the
+// image, and keep the uniform segment division of eq. (8): a run ends on the
+// segment grid, at the last sample whose *computed* position still falls
+// into the macrocell. Sample positions p0 + dp·t with t = t_near + x·δ are
+// monotone in x per axis (IEEE rounding is monotone), so the samples
+// between two samples of one macrocell are in it too; the run's end is
+// estimated from the ray's exit from the macrocell's box and then verified
+// on the computed position.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "fathom/math.h"
+#include "fathom/render.h"
+#include "fathom/transfer_function.h"
+#include "fathom/volume.h"
+
+#include "integrate/ray_span.h"
+
+namespace fathom {
+
+class EmptySpace {
+public:
+    static constexpr std::int64_t kShift = 3;  // macrocells of 8³ cells
+    static constexpr std::int64_t kCells = std::int64_t{1} << kShift;
+
+    EmptySpace() = default;
+    /// A scalar volume classified by `tf` under model `m`.
+    static EmptySpace for_scalar(const Volume& v, const Classifier& tf, Model m, int threads);
+    /// Pre-classified grids: empty where every density node is exactly 0.
+    static EmptySpace for_density(const Volume& density, int threads);
+
+    /// True when at least one macrocell is empty (else skipping is pointless).
+    [[nodiscard]] bool any() const { return any_; }
+    [[nodiscard]] double empty_fraction() const;
+
+    /// The macrocell of a position, chosen as GridSampler picks the cell.
+    [[nodiscard]] std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
+        return {axis_cell(p.x, 0) >> kShift, axis_cell(p.y, 1) >> kShift, axis_cell(p.z, 2) >> kShift};
+    }
+    [[nodiscard]] bool empty(const std::array<std::int64_t, 3>& m) const {
+        return empty_[static_cast<std::size_t>(m[0] + mdims_[0] * (m[1] + mdims_[1] * m[2]))] != 0;
+    }
+
+    /// The ray parameter where the ray leaves (dir = +1) or enters
+    /// (dir = −1) macrocell m's box, in the ray's own index-space terms.
+    [[nodiscard]] double box_exit(const RaySpan& sp, const std::array<std::int64_t, 3>& m, int dir) const {
+        double t = dir > 0 ? INFINITY : -INFINITY;
+        for (int a = 0; a < 3; ++a) {
+            if (sp.dp[a] == 0.0) continue;
+            const double lo = static_cast<double>(m[a] * kCells);
+            const double hi = static_cast<double>(std::min(m[a] * kCells + kCells, nodes_[a] - 1));
+            const bool up = (sp.dp[a] > 0.0) == (dir > 0);
+            const double ta = ((up ? hi : lo) - sp.p0[a]) / sp.dp[a];
+            t = dir > 0 ? std::min(t, ta) : std::max(t, ta);
+        }
+        return t;
+    }
+
+private:
+    [[nodiscard]] std::int64_t axis_cell(double p, int a) const {
+        const double x = std::clamp(p, 0.0, static_cast<double>(nodes_[a] - 1));
+        return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
+    }
+
+    std::array<std::int64_t, 3> nodes_{};
+    std::array<std::int64_t, 3> mdims_{};
+    std::vector<std::uint8_t> empty_;
+    bool any_ = false;
+};
+
+/// Sample positions on the segment grid: index j sits at
+/// t_near + (j − first + offset)·δ (first = 1 and the in-segment offset for
+/// the point samples of segments 1..n; first = 0, offset = 0 for the
+/// segment ends 0..n of pre-integration). The integrators sample through
+/// this, so the run finder sees the very positions they sample.
+struct SampleGrid {
+    const RaySpan* span;
+    double delta, offset;
+    std::int64_t first;
+    [[nodiscard]] double t(std::int64_t j) const {
+        return span->t_near + (static_cast<double>(j - first) + offset) * delta;
+    }
+    [[nodiscard]] Vec3 at(std::int64_t j) const { return span->at(t(j)); }
+    /// The fractional index at parameter t (inverse of t(j), up to rounding).
+    [[nodiscard]] double index_at(double t) const {
+        return (t - span->t_near) / delta - offset + static_cast<double>(first);
+    }
+};
+
+/// Walks runs of samples through macrocells for one ray. run(j, dir, limit)
+/// answers: when sample j lies in an empty macrocell, the farthest sample
+/// index k (from j towards `limit` in direction dir) still in that
+/// macrocell, so samples j..k are all in it; otherwise j − dir. Non-empty
+/// macrocells are remembered so that their samples cost no lookup.
+class RunFinder {
+public:
+    RunFinder(const EmptySpace& es, SampleGrid grid) : es_(es), g_(grid) {}
+
+    std::int64_t run(std::int64_t j, int dir, std::int64_t limit) {
+        if (dir * (j - busy_until_) <= 0 && busy_dir_ == dir) return j - dir;
+        const auto m = es_.macrocell(g_.at(j));
+        const std::int64_t k = last_in(m, j, dir, limit);
+        if (es_.empty(m)) return k;
+        busy_until_ = k;  // samples j..k are in a non-empty macrocell
+        busy_dir_ = dir;
+        return j - dir;
+    }
+
+private:
+    // The farthest index from j towards limit whose position is in m.
+    std::int64_t last_in(const std::array<std::int64_t, 3>& m, std::int64_t j, int dir, std::int64_t limit) {
+        const double tb = es_.box_exit(*g_.span, m, dir);
+        double x = g_.index_at(tb);  // fractional index of the exit
+        std::int64_t k;
+        if (!std::isfinite(x)) {
+            k = limit;
+        } else {
+            x = dir > 0 ? std::floor(x) : std::ceil(x);
+            const double lo = static_cast<double>(std::min(j, limit)),
+                         hi = static_cast<double>(std::max(j, limit));
+            k = static_cast<std::int64_t>(std::clamp(x, lo, hi));
+        }
+        // Verify on the computed positions (rounding can move the last one out).
+        while (k != j && es_.macrocell(g_.at(k)) != m) k -= dir;
+        return k;
+    }
+
+    const EmptySpace& es_;
+    SampleGrid g_;
+    std::int64_t busy_until_ = 0;
+    int busy_dir_ = 0;
+};
+
+}  // namespace fathom

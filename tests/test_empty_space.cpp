@@ -1,0 +1,201 @@
+// Exact empty-space skipping (src/render/empty_space.h): the zero test on
+// transfer functions, the macrocell classification, and images that are
+// bit-identical with skipping on and off for every integrator, model, order
+// and medium it applies to.
+#include <cmath>
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+#include "fathom/render.h"
+
+#include "render/empty_space.h"
+#include "synthetic.h"
+
+using namespace fathom;
+using fathom::test::extinction_tf;
+using fathom::test::make_volume;
+
+namespace {
+
+// Three soft blobs in a box whose cell counts are not multiples of 8, with
+// anisotropic spacing: v ∈ [0, 1], 0 far from the blobs.
+Volume blobs() {
+    Volume v = make_volume(37, 29, 45, [](double x, double y, double z) {
+        auto blob = [&](double cx, double cy, double cz, double r) {
+            const double d = std::sqrt((x - cx) * (x - cx) + (y - cy) * (y - cy) + (z - cz) * (z - cz));
+            return std::max(0.0, 1.0 - d / r);
+        };
+        return std::min(1.0, blob(10, 9, 12, 7) + blob(26, 18, 30, 9) + blob(18, 22, 38, 4));
+    });
+    v.set_spacing({1.0, 1.5, 0.8});
+    return v;
+}
+
+// σ exactly 0 below v = 0.3, a ramp, a jump at 0.6; colors vary with v.
+TransferFunction blob_tf(bool associated = false) {
+    TransferFunction tf;
+    tf.alpha_kind = TransferFunction::Alpha::extinction;
+    tf.alpha_points = {{0.0, 0.0}, {0.3, 0.0}, {0.45, 0.8}, {0.6, 0.8}, {0.6, 2.5}, {1.0, 3.0}};
+    tf.associated = associated;
+    if (associated)  // q exactly 0 below 0.2 only: σ = 0 but q ≠ 0 on [0.2, 0.3]
+        tf.color_points = {{0.0, {0, 0, 0}}, {0.2, {0, 0, 0}}, {0.5, {0.6, 0.3, 0.1}}, {1.0, {1, 1, 0.5}}};
+    else
+        tf.color_points = {{0.0, {0.2, 0.4, 0.9}}, {0.5, {0.9, 0.5, 0.2}}, {1.0, {1, 1, 1}}};
+    return tf;
+}
+
+bool same_pixels(const Image& a, const Image& b) {
+    return a.width == b.width && a.height == b.height && a.rgba.size() == b.rgba.size() &&
+           std::memcmp(a.rgba.data(), b.rgba.data(), sizeof(float) * a.rgba.size()) == 0;
+}
+
+// Cameras including axis-aligned views (rays along macrocell faces) and an
+// orthographic one.
+std::vector<Camera> cameras(const Volume& v) {
+    const Bounds b = volume_bounds(v);
+    std::vector<Camera> c{Camera::orbit(0, 0, 2.5, b.center, b.radius),
+                          Camera::orbit(90, 0, 2.5, b.center, b.radius),
+                          Camera::orbit(33, 27, 2.2, b.center, b.radius)};
+    Camera o = Camera::orbit(0, 90 - 1e-9, 3, b.center, b.radius);
+    o.projection = Projection::orthographic;
+    o.height = 2 * b.radius;
+    c.push_back(o);
+    return c;
+}
+
+RenderSettings base(IntegratorKind k, Model m, Order o) {
+    RenderSettings s;
+    s.width = s.height = 40;
+    s.integrator = k;
+    s.model = m;
+    s.order = o;
+    s.step = 0.7;
+    s.threads = 2;
+    return s;
+}
+
+// Renders with skipping on and off; returns the number of differing images.
+int compare_scalar(const Volume& v, const TransferFunction& tf, RenderSettings s) {
+    int bad = 0;
+    for (const Camera& cam : cameras(v)) {
+        s.skip_empty = true;
+        const Image on = Renderer(v, tf, s).render(cam);
+        s.skip_empty = false;
+        const Image off = Renderer(v, tf, s).render(cam);
+        if (!same_pixels(on, off)) ++bad;
+    }
+    return bad;
+}
+
+constexpr std::array<IntegratorKind, 4> kSkipping{IntegratorKind::riemann, IntegratorKind::alpha,
+                                                  IntegratorKind::preintegrated,
+                                                  IntegratorKind::preintegrated_simple};
+constexpr std::array<Model, 3> kModels{Model::emission_absorption, Model::absorption, Model::emission};
+
+}  // namespace
+
+TEST(EmptySpace, ZeroOnFollowsPiecesAndJumps) {
+    const PiecewiseLinear<1> f(
+        {{0.0, {0.0}}, {1.0, {0.0}}, {2.0, {1.0}}, {3.0, {0.0}}, {3.0, {0.0}}, {4.0, {0.0}}, {4.0, {2.0}}});
+    EXPECT_TRUE(f.zero_on(-5.0, 0.5));
+    EXPECT_TRUE(f.zero_on(0.0, 0.999));
+    EXPECT_FALSE(f.zero_on(0.5, 1.0));  // at v = 1 the rising piece is selected
+    EXPECT_FALSE(f.zero_on(0.5, 1.5));
+    EXPECT_FALSE(f.zero_on(2.5, 3.5));  // the falling piece ends at 3
+    EXPECT_TRUE(f.zero_on(3.0, 3.999));
+    EXPECT_FALSE(f.zero_on(3.5, 4.0));  // the jump at 4 to 2
+    EXPECT_FALSE(f.zero_on(5.0, 9.0));  // beyond the end: 2
+    EXPECT_FALSE(f.zero_on(NAN, 0.5));
+    EXPECT_FALSE(f.zero_on(0.6, 0.5));
+    EXPECT_FALSE(PiecewiseLinear<1>().zero_on(0.0, 1.0));
+}
+
+TEST(EmptySpace, MacrocellsAreEmptyOnlyWhereTheMediumIsZero) {
+    const Volume v = blobs();
+    const Classifier tf(blob_tf(), v.smallest_spacing());
+    const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 2);
+    ASSERT_TRUE(es.any());
+    EXPECT_GT(es.empty_fraction(), 0.3);
+    EXPECT_LT(es.empty_fraction(), 0.95);
+    // Every node of an empty macrocell has σ = 0 (brute force over all nodes).
+    for (std::int64_t k = 0; k < 45; ++k)
+        for (std::int64_t j = 0; j < 29; ++j)
+            for (std::int64_t i = 0; i < 37; ++i) {
+                const Vec3 p{static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)};
+                if (es.empty(es.macrocell(p))) {
+                    ASSERT_EQ(tf.sigma(v.value(i, j, k)), 0.0) << i << " " << j << " " << k;
+                }
+            }
+    // Projection modes have nothing to skip; an all-zero σ is all empty.
+    EXPECT_FALSE(EmptySpace::for_scalar(v, tf, Model::mip, 2).any());
+    const Classifier none(extinction_tf({{0.0, 0.0}}, {1, 1, 1}), 1.0);
+    EXPECT_DOUBLE_EQ(EmptySpace::for_scalar(v, none, Model::absorption, 1).empty_fraction(), 1.0);
+}
+
+TEST(EmptySpace, NanNodesAreNeverSkipped) {
+    Volume v = make_volume(10, 10, 10, [](double, double, double) { return 0.0; });
+    v.set_value(3, 3, 3, NAN);
+    const Classifier tf(blob_tf(), 1.0);
+    const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 1);
+    EXPECT_FALSE(es.empty(es.macrocell({3, 3, 3})));
+    EXPECT_TRUE(es.empty(es.macrocell({9, 9, 9})));
+}
+
+// The tests the skipping exists for: every image identical bit for bit.
+TEST(EmptySpace, ScalarImagesAreBitIdenticalWithAndWithoutSkipping) {
+    const Volume v = blobs();
+    for (auto k : kSkipping)
+        for (auto m : kModels)
+            for (auto o : {Order::front_to_back, Order::back_to_front})
+                EXPECT_EQ(compare_scalar(v, blob_tf(), base(k, m, o)), 0)
+                    << to_string(k) << " " << to_string(m) << " " << to_string(o);
+}
+
+TEST(EmptySpace, AssociatedEmissionJitterAndMidpointsAreBitIdentical) {
+    const Volume v = blobs();
+    for (auto k : kSkipping)
+        for (auto m : kModels) {
+            RenderSettings s = base(k, m, Order::front_to_back);
+            EXPECT_EQ(compare_scalar(v, blob_tf(true), s), 0) << to_string(k) << " " << to_string(m);
+        }
+    for (auto k : {IntegratorKind::riemann, IntegratorKind::alpha}) {
+        RenderSettings s = base(k, Model::emission_absorption, Order::front_to_back);
+        s.jitter = true;
+        s.jitter_seed = 7;
+        EXPECT_EQ(compare_scalar(v, blob_tf(), s), 0) << to_string(k) << " jitter";
+        s.jitter = false;
+        s.sample_point = SamplePoint::mid;
+        s.step = 0.25;
+        EXPECT_EQ(compare_scalar(v, blob_tf(), s), 0) << to_string(k) << " mid";
+    }
+}
+
+TEST(EmptySpace, PreclassifiedGridImagesAreBitIdentical) {
+    const Volume shape = blobs();
+    Volume density = make_volume(37, 29, 45, [&](double x, double y, double z) {
+        const double s = shape.value(static_cast<std::int64_t>(x), static_cast<std::int64_t>(y),
+                                     static_cast<std::int64_t>(z));
+        return s > 0.25 ? 2.0 * s : 0.0;
+    });
+    density.set_spacing({1.0, 1.5, 0.8});
+    Volume color({37, 29, 45}, DType::f32, 3);
+    color.set_spacing({1.0, 1.5, 0.8});
+    for (std::int64_t k = 0; k < 45; ++k)
+        for (std::int64_t j = 0; j < 29; ++j)
+            for (std::int64_t i = 0; i < 37; ++i)
+                for (int c = 0; c < 3; ++c)
+                    color.set_value(i, j, k, 0.1 + 0.02 * static_cast<double>((i + c * j) % 40), c);
+    ASSERT_TRUE(EmptySpace::for_density(density, 2).any());
+    for (auto k : kSkipping)
+        for (auto o : {Order::front_to_back, Order::back_to_front}) {
+            RenderSettings s = base(k, Model::emission_absorption, o);
+            for (const Camera& cam : cameras(density)) {
+                s.skip_empty = true;
+                const Image on = Renderer(density, color, s).render(cam);
+                s.skip_empty = false;
+                const Image off = Renderer(density, color, s).render(cam);
+                EXPECT_TRUE(same_pixels(on, off)) << to_string(k) << " " << to_string(o);
+            }
+        }
+}
