@@ -114,7 +114,7 @@ TEST(EmptySpace, ZeroOnFollowsPiecesAndJumps) {
 TEST(EmptySpace, MacrocellsAreEmptyOnlyWhereTheMediumIsZero) {
     const Volume v = blobs();
     const Classifier tf(blob_tf(), v.smallest_spacing());
-    const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 2);
+    const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 3, 2);
     ASSERT_TRUE(es.any());
     EXPECT_GT(es.empty_fraction(), 0.3);
     EXPECT_LT(es.empty_fraction(), 0.95);
@@ -128,16 +128,16 @@ TEST(EmptySpace, MacrocellsAreEmptyOnlyWhereTheMediumIsZero) {
                 }
             }
     // Projection modes have nothing to skip; an all-zero σ is all empty.
-    EXPECT_FALSE(EmptySpace::for_scalar(v, tf, Model::mip, 2).any());
+    EXPECT_FALSE(EmptySpace::for_scalar(v, tf, Model::mip, 3, 2).any());
     const Classifier none(extinction_tf({{0.0, 0.0}}, {1, 1, 1}), 1.0);
-    EXPECT_DOUBLE_EQ(EmptySpace::for_scalar(v, none, Model::absorption, 1).empty_fraction(), 1.0);
+    EXPECT_DOUBLE_EQ(EmptySpace::for_scalar(v, none, Model::absorption, 2, 1).empty_fraction(), 1.0);
 }
 
 TEST(EmptySpace, NanNodesAreNeverSkipped) {
     Volume v = make_volume(10, 10, 10, [](double, double, double) { return 0.0; });
     v.set_value(3, 3, 3, NAN);
     const Classifier tf(blob_tf(), 1.0);
-    const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 1);
+    const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 2, 1);
     EXPECT_FALSE(es.empty(es.macrocell({3, 3, 3})));
     EXPECT_TRUE(es.empty(es.macrocell({9, 9, 9})));
 }
@@ -186,7 +186,7 @@ TEST(EmptySpace, PreclassifiedGridImagesAreBitIdentical) {
             for (std::int64_t i = 0; i < 37; ++i)
                 for (int c = 0; c < 3; ++c)
                     color.set_value(i, j, k, 0.1 + 0.02 * static_cast<double>((i + c * j) % 40), c);
-    ASSERT_TRUE(EmptySpace::for_density(density, 2).any());
+    ASSERT_TRUE(EmptySpace::for_density(density, 3, 2).any());
     for (auto k : kSkipping)
         for (auto o : {Order::front_to_back, Order::back_to_front}) {
             RenderSettings s = base(k, Model::emission_absorption, o);

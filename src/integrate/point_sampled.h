@@ -24,11 +24,13 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
         return rule(m, delta);
     };
     if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
-    // A sample in an empty macrocell gives (1, 0): skip the run of them.
-    RunFinder runs(*es, grid);
+    // Samples in an empty macrocell give (1, 0): skip each run of them;
+    // evaluate each run in a non-empty one without further lookups.
+    const RunFinder runs(*es, grid);
     return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) {
-        const std::int64_t k = runs.run(i, dir, dir > 0 ? n : 1);
-        return dir * (k - i) + 1;
+        const auto run = runs.run(i, dir, dir > 0 ? n : 1);
+        const std::int64_t count = dir * (run.last - i) + 1;
+        return run.empty ? count : -count;
     });
 }
 

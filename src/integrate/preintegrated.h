@@ -184,14 +184,18 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         }
     };
     if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
-    RunFinder runs(*es, grid);
+    // Segments whose two ends lie in one empty macrocell are (1, 0); those
+    // with an end in a non-empty one are evaluated without further lookups.
+    const RunFinder runs(*es, grid);
     return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) -> std::int64_t {
-        if (dir > 0) {  // ends i−1..k in one empty macrocell: segments i..k are zero
-            const std::int64_t k = runs.run(i - 1, +1, n);
-            return std::max<std::int64_t>(0, k - i + 1);
+        if (dir > 0) {  // front ends i−1..k share a macrocell
+            const auto run = runs.run(i - 1, +1, n);
+            if (run.empty && run.last >= i) return run.last - i + 1;  // segments i..k
+            return -std::max<std::int64_t>(1, run.last - i + 2);      // segments i..k+1
         }
-        const std::int64_t k = runs.run(i, -1, 0);  // ends k..i: segments k+1..i
-        return std::max<std::int64_t>(0, i - k);
+        const auto run = runs.run(i, -1, 0);                  // back ends k..i share a macrocell
+        if (run.empty && run.last < i) return i - run.last;   // segments k+1..i
+        return -std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
     });
 }
 

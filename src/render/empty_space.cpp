@@ -15,7 +15,9 @@ struct Range {
 
 /// The node range of every macrocell of component 0 of `v`, macrocell
 /// slabs (fixed z) spread over threads.
-std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64_t, 3>& md, int threads) {
+std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64_t, 3>& md, int shift,
+                                    int threads) {
+    const std::int64_t cells = std::int64_t{1} << shift;
     const auto& n = v.dims();
     const std::int64_t comps = v.components();
     std::vector<Range> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
@@ -24,14 +26,11 @@ std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64
         std::atomic<std::int64_t> next{0};
         auto worker = [&] {
             for (std::int64_t mz = next++; mz < md[2]; mz = next++) {
-                const std::int64_t z0 = mz * EmptySpace::kCells,
-                                   z1 = std::min(z0 + EmptySpace::kCells, n[2] - 1);
+                const std::int64_t z0 = mz * cells, z1 = std::min(z0 + cells, n[2] - 1);
                 for (std::int64_t my = 0; my < md[1]; ++my) {
-                    const std::int64_t y0 = my * EmptySpace::kCells,
-                                       y1 = std::min(y0 + EmptySpace::kCells, n[1] - 1);
+                    const std::int64_t y0 = my * cells, y1 = std::min(y0 + cells, n[1] - 1);
                     for (std::int64_t mx = 0; mx < md[0]; ++mx) {
-                        const std::int64_t x0 = mx * EmptySpace::kCells,
-                                           x1 = std::min(x0 + EmptySpace::kCells, n[0] - 1);
+                        const std::int64_t x0 = mx * cells, x1 = std::min(x0 + cells, n[0] - 1);
                         Range r;
                         for (std::int64_t z = z0; z <= z1; ++z)
                             for (std::int64_t y = y0; y <= y1; ++y) {
@@ -57,9 +56,9 @@ std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64
     return out;
 }
 
-std::array<std::int64_t, 3> macro_dims(const Volume& v) {
+std::array<std::int64_t, 3> macro_dims(const Volume& v, int shift) {
     std::array<std::int64_t, 3> md{};
-    for (int a = 0; a < 3; ++a) md[a] = (v.dims()[a] - 2) / EmptySpace::kCells + 1;  // cells n−1, rounded up
+    for (int a = 0; a < 3; ++a) md[a] = ((v.dims()[a] - 2) >> shift) + 1;  // n − 1 cells, rounded up
     return md;
 }
 
@@ -69,12 +68,13 @@ int resolve_threads(int threads) {
 
 }  // namespace
 
-EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int threads) {
+EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads) {
     EmptySpace es;
     if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return es;
+    es.shift_ = shift;
     es.nodes_ = v.dims();
-    es.mdims_ = macro_dims(v);
-    const auto ranges = macrocell_ranges(v, es.mdims_, resolve_threads(threads));
+    es.mdims_ = macro_dims(v, shift);
+    const auto ranges = macrocell_ranges(v, es.mdims_, shift, resolve_threads(threads));
     es.empty_.resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const Range& r = ranges[i];
@@ -92,11 +92,12 @@ EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m
     return es;
 }
 
-EmptySpace EmptySpace::for_density(const Volume& density, int threads) {
+EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads) {
     EmptySpace es;
+    es.shift_ = shift;
     es.nodes_ = density.dims();
-    es.mdims_ = macro_dims(density);
-    const auto ranges = macrocell_ranges(density, es.mdims_, resolve_threads(threads));
+    es.mdims_ = macro_dims(density, shift);
+    const auto ranges = macrocell_ranges(density, es.mdims_, shift, resolve_threads(threads));
     es.empty_.resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const bool e = !ranges[i].nan && ranges[i].lo == 0.0 && ranges[i].hi == 0.0;

@@ -1,6 +1,6 @@
 // Exact empty-space skipping (docs/performance.md "Empty-space skipping").
 //
-// The lattice's cells are grouped into macrocells of kCells³ cells. A
+// The lattice's cells are grouped into macrocells of c³ cells (c = 2^shift). A
 // macrocell holds the range [min, max] of its nodes (its boundary nodes
 // included), which bounds every trilinear sample inside it. It is *empty*
 // when the medium is exactly zero over that range under the frame's model:
@@ -38,14 +38,12 @@ namespace fathom {
 
 class EmptySpace {
 public:
-    static constexpr std::int64_t kShift = 3;  // macrocells of 8³ cells
-    static constexpr std::int64_t kCells = std::int64_t{1} << kShift;
-
     EmptySpace() = default;
-    /// A scalar volume classified by `tf` under model `m`.
-    static EmptySpace for_scalar(const Volume& v, const Classifier& tf, Model m, int threads);
+    /// A scalar volume classified by `tf` under model `m`, macrocells of
+    /// 2^shift cells per edge.
+    static EmptySpace for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads);
     /// Pre-classified grids: empty where every density node is exactly 0.
-    static EmptySpace for_density(const Volume& density, int threads);
+    static EmptySpace for_density(const Volume& density, int shift, int threads);
 
     /// True when at least one macrocell is empty (else skipping is pointless).
     [[nodiscard]] bool any() const { return any_; }
@@ -53,22 +51,24 @@ public:
 
     /// The macrocell of a position, chosen as GridSampler picks the cell.
     [[nodiscard]] std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
-        return {axis_cell(p.x, 0) >> kShift, axis_cell(p.y, 1) >> kShift, axis_cell(p.z, 2) >> kShift};
+        return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
     }
     [[nodiscard]] bool empty(const std::array<std::int64_t, 3>& m) const {
         return empty_[static_cast<std::size_t>(m[0] + mdims_[0] * (m[1] + mdims_[1] * m[2]))] != 0;
     }
 
     /// The ray parameter where the ray leaves (dir = +1) or enters
-    /// (dir = −1) macrocell m's box, in the ray's own index-space terms.
-    [[nodiscard]] double box_exit(const RaySpan& sp, const std::array<std::int64_t, 3>& m, int dir) const {
+    /// (dir = −1) macrocell m's box; inv_dp = 1/dp per axis (an estimate:
+    /// callers verify on computed positions).
+    [[nodiscard]] double box_exit(const RaySpan& sp, const Vec3& inv_dp, const std::array<std::int64_t, 3>& m,
+                                  int dir) const {
         double t = dir > 0 ? INFINITY : -INFINITY;
         for (int a = 0; a < 3; ++a) {
             if (sp.dp[a] == 0.0) continue;
-            const double lo = static_cast<double>(m[a] * kCells);
-            const double hi = static_cast<double>(std::min(m[a] * kCells + kCells, nodes_[a] - 1));
+            const double lo = static_cast<double>(m[a] << shift_);
+            const double hi = static_cast<double>(std::min((m[a] + 1) << shift_, nodes_[a] - 1));
             const bool up = (sp.dp[a] > 0.0) == (dir > 0);
-            const double ta = ((up ? hi : lo) - sp.p0[a]) / sp.dp[a];
+            const double ta = ((up ? hi : lo) - sp.p0[a]) * inv_dp[a];
             t = dir > 0 ? std::min(t, ta) : std::max(t, ta);
         }
         return t;
@@ -80,6 +80,7 @@ private:
         return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
     }
 
+    int shift_ = 3;
     std::array<std::int64_t, 3> nodes_{};
     std::array<std::int64_t, 3> mdims_{};
     std::vector<std::uint8_t> empty_;
@@ -99,40 +100,32 @@ struct SampleGrid {
         return span->t_near + (static_cast<double>(j - first) + offset) * delta;
     }
     [[nodiscard]] Vec3 at(std::int64_t j) const { return span->at(t(j)); }
-    /// The fractional index at parameter t (inverse of t(j), up to rounding).
-    [[nodiscard]] double index_at(double t) const {
-        return (t - span->t_near) / delta - offset + static_cast<double>(first);
-    }
 };
 
-/// Walks runs of samples through macrocells for one ray. run(j, dir, limit)
-/// answers: when sample j lies in an empty macrocell, the farthest sample
-/// index k (from j towards `limit` in direction dir) still in that
-/// macrocell, so samples j..k are all in it; otherwise j − dir. Non-empty
-/// macrocells are remembered so that their samples cost no lookup.
+/// Walks runs of samples through macrocells for one ray: run(j, dir, limit)
+/// finds the macrocell of sample j and the farthest sample index k (from j
+/// towards `limit` in direction dir = ±1) still in it, so that samples j..k
+/// all lie in that macrocell.
 class RunFinder {
 public:
-    RunFinder(const EmptySpace& es, SampleGrid grid) : es_(es), g_(grid) {}
+    struct Run {
+        std::int64_t last;  // k
+        bool empty;         // the macrocell is empty
+    };
 
-    std::int64_t run(std::int64_t j, int dir, std::int64_t limit) {
-        if (dir * (j - busy_until_) <= 0 && busy_dir_ == dir) return j - dir;
+    RunFinder(const EmptySpace& es, SampleGrid grid)
+        : es_(es),
+          g_(grid),
+          inv_dp_{1.0 / grid.span->dp.x, 1.0 / grid.span->dp.y, 1.0 / grid.span->dp.z},
+          inv_delta_(1.0 / grid.delta) {}
+
+    Run run(std::int64_t j, int dir, std::int64_t limit) const {
         const auto m = es_.macrocell(g_.at(j));
-        const std::int64_t k = last_in(m, j, dir, limit);
-        if (es_.empty(m)) return k;
-        busy_until_ = k;  // samples j..k are in a non-empty macrocell
-        busy_dir_ = dir;
-        return j - dir;
-    }
-
-private:
-    // The farthest index from j towards limit whose position is in m.
-    std::int64_t last_in(const std::array<std::int64_t, 3>& m, std::int64_t j, int dir, std::int64_t limit) {
-        const double tb = es_.box_exit(*g_.span, m, dir);
-        double x = g_.index_at(tb);  // fractional index of the exit
-        std::int64_t k;
-        if (!std::isfinite(x)) {
-            k = limit;
-        } else {
+        const double tb = es_.box_exit(*g_.span, inv_dp_, m, dir);
+        // the fractional index of the box exit (inverse of SampleGrid::t)
+        double x = (tb - g_.span->t_near) * inv_delta_ - g_.offset + static_cast<double>(g_.first);
+        std::int64_t k = limit;
+        if (std::isfinite(x)) {
             x = dir > 0 ? std::floor(x) : std::ceil(x);
             const double lo = static_cast<double>(std::min(j, limit)),
                          hi = static_cast<double>(std::max(j, limit));
@@ -140,13 +133,14 @@ private:
         }
         // Verify on the computed positions (rounding can move the last one out).
         while (k != j && es_.macrocell(g_.at(k)) != m) k -= dir;
-        return k;
+        return {k, es_.empty(m)};
     }
 
+private:
     const EmptySpace& es_;
     SampleGrid g_;
-    std::int64_t busy_until_ = 0;
-    int busy_dir_ = 0;
+    Vec3 inv_dp_;
+    double inv_delta_;
 };
 
 }  // namespace fathom

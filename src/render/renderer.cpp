@@ -144,6 +144,13 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
                 "needs a scalar volume with a transfer function (pre-classified grids are refused)");
 }
 
+/// Macrocell edge (log2 cells): point samples are cheap to skip one by one,
+/// so finer macrocells pay; pre-integrated segments crossing a macrocell
+/// face cost two end samples, so coarser ones do (docs/performance.md).
+int macrocell_shift(IntegratorKind k) {
+    return k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;
+}
+
 void setup(Renderer::Impl& im, const Volume& lattice) {
     im.s.validate();
     im.lattice = &lattice;
@@ -165,7 +172,8 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
     setup(*impl_, volume);
     impl_->tf = Classifier(tf, volume.smallest_spacing());
     if (impl_->s.skip_empty)
-        impl_->empty_space = EmptySpace::for_scalar(volume, impl_->tf, impl_->s.model, impl_->s.threads);
+        impl_->empty_space = EmptySpace::for_scalar(volume, impl_->tf, impl_->s.model,
+                                                    macrocell_shift(impl_->s.integrator), impl_->s.threads);
     impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
         ScalarMedium<T> med{GridSampler<T>(volume), &impl_->tf};
         return make_tracer(med, *impl_);
@@ -184,7 +192,9 @@ Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings se
     if (!is_float(density.dtype()) || !is_float(color.dtype()))
         throw Error("pre-classified grids", "density and color must be float32 or float64");
     setup(*impl_, density);
-    if (impl_->s.skip_empty) impl_->empty_space = EmptySpace::for_density(density, impl_->s.threads);
+    if (impl_->s.skip_empty)
+        impl_->empty_space =
+            EmptySpace::for_density(density, macrocell_shift(impl_->s.integrator), impl_->s.threads);
     impl_->tracer = visit_dtype(density.dtype(), [&]<class D>(D*) -> Tracer {
         if constexpr (std::is_floating_point_v<D>) {
             return visit_dtype(color.dtype(), [&]<class C>(C*) -> Tracer {
