@@ -43,6 +43,24 @@ Volume read_nrrd(const std::filesystem::path& path);
 /// zlib-compressed data; Offset, ElementSpacing, TransformMatrix).
 Volume read_metaimage(const std::filesystem::path& path);
 
+/// SLC (.slc), the VolVis format read by VTK's vtkSLCReader: 8-bit samples,
+/// raw or run-length encoded slices; spacing from the header, origin 0. A
+/// slice that decodes short by at most one row (embryo.slc: one byte) is
+/// padded with 0 and reported with a warning.
+Volume read_slc(const std::filesystem::path& path);
+
+/// Legacy VTK (.vtk) DATASET STRUCTURED_POINTS with POINT_DATA SCALARS (one
+/// component; unsigned_char, char, unsigned_short, short, unsigned_int, int,
+/// float, double), ASCII or BINARY (big-endian); DIMENSIONS, SPACING (or
+/// ASPECT_RATIO), ORIGIN. Bytes after the scalars are ignored.
+Volume read_legacy_vtk(const std::filesystem::path& path);
+
+/// VTK XML ImageData (.vti): one piece, the active point Scalars (or the
+/// first point array), one component; ascii, binary (base64) and appended
+/// (raw or base64) data, uncompressed or vtkZLibDataCompressor; UInt32 or
+/// UInt64 headers; WholeExtent, Origin, Spacing and Direction.
+Volume read_vti(const std::filesystem::path& path);
+
 /// Any supported volume file: the format is found from the content (magic
 /// bytes), then the extension, then the raw naming convention.
 Volume read_volume(const std::filesystem::path& path);

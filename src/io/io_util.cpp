@@ -190,6 +190,17 @@ std::string read_prefix(const std::string& subject, const std::filesystem::path&
     return text;
 }
 
+std::string read_range(const std::string& subject, const std::filesystem::path& file, std::uint64_t offset,
+                       std::size_t max_bytes) {
+    const std::uint64_t size = file_size_checked(subject, file, "file");
+    if (offset >= size) return {};
+    std::string text(static_cast<std::size_t>(std::min<std::uint64_t>(size - offset, max_bytes)), '\0');
+    InputFile in(subject, file);
+    in.seek(offset);
+    text.resize(in.read(text.data(), text.size()));
+    return text;
+}
+
 std::filesystem::path resolve_beside(const std::filesystem::path& header, std::string_view name) {
     std::filesystem::path p{std::string(trim(name))};
     if (p.is_absolute()) return p;
@@ -411,7 +422,7 @@ void plan_raw(const std::string& subject, Piece& p, const DataSpec& spec, std::u
         if (spec.byte_skip > size - p.offset) truncated(subject, p, size, spec.byte_skip, need);
         p.offset += spec.byte_skip;
         if (size - p.offset < need) truncated(subject, p, size, p.offset, need);
-        if (size - p.offset > need)
+        if (spec.warn_extra && size - p.offset > need)
             warn(subject + ": " + p.label + " holds " + std::to_string(size - p.offset - need) +
                  " bytes more than the data; they are ignored");
     }

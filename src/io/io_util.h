@@ -1,4 +1,4 @@
-// Private helpers shared by the volume readers (raw, NRRD, MetaImage):
+// Private helpers shared by the volume readers (raw, NRRD, MetaImage, SLC, VTK):
 // strict number parsing, header text, size checks that run before any
 // allocation, and one routine that fills a Volume from raw, zlib/gzip or
 // ASCII data spread over one or more files. Every failure is a
@@ -69,6 +69,9 @@ auto parse_growing_prefix(const std::string& subject, const std::filesystem::pat
     }
     throw Error(subject, "the header does not end within its first 16 MiB");
 }
+/// Up to max_bytes of a file from byte `offset` on (fewer at the end, none past it).
+std::string read_range(const std::string& subject, const std::filesystem::path& file, std::uint64_t offset,
+                       std::size_t max_bytes);
 /// A data file name from a header, relative to the header's folder unless absolute.
 std::filesystem::path resolve_beside(const std::filesystem::path& header, std::string_view name);
 
@@ -112,6 +115,7 @@ struct DataSpec {
     std::uint64_t byte_skip = 0;  // raw/ascii: in the file; zlib: in the decompressed stream
     std::uint64_t line_skip = 0;  // lines skipped in the file before anything else
     std::optional<std::uint64_t> compressed_bytes;  // zlib: bytes of compressed input, if known
+    bool warn_extra = true;                         // raw: warn when the file holds bytes after the data
 };
 
 struct DataFile {

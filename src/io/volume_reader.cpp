@@ -15,8 +15,9 @@ namespace {
 using Reader = Volume (*)(const std::filesystem::path&);
 
 constexpr std::string_view kSupported =
-    "supported: NRRD (.nrrd, .nhdr), MetaImage (.mhd, .mha), and raw files named NAME_XxYxZ_TYPE.raw or "
-    ".raw.gz, TYPE one of uint8, int8, uint16, int16, uint32, int32, float32, float64 with an optional be/le "
+    "supported: NRRD (.nrrd, .nhdr), MetaImage (.mhd, .mha), SLC (.slc), legacy VTK structured points "
+    "(.vtk), VTK XML ImageData (.vti), and raw files named NAME_XxYxZ_TYPE.raw or .raw.gz, TYPE one of "
+    "uint8, int8, uint16, int16, uint32, int32, float32, float64 with an optional be/le "
     "suffix, e.g. head_256x256x128_uint16le.raw";
 
 /// The first non-empty line reads "Key = ..." with a key MetaImage headers start with.
@@ -37,20 +38,39 @@ bool looks_like_metaimage(std::string_view head) {
     return false;
 }
 
+/// SLC: the magic number 11111 as the first whitespace-separated token.
+bool looks_like_slc(std::string_view head) {
+    const auto tokens = io::split_ws(head.substr(0, 64));
+    return tokens.size() > 1 && tokens[0] == "11111";
+}
+
+/// VTK XML: a <VTKFile element near the start (the reader checks its type).
+bool looks_like_vtk_xml(std::string_view head) {
+    const std::string_view t = io::trim(head);
+    return (t.starts_with("<?xml") || t.starts_with("<VTKFile") || t.starts_with("<!--")) &&
+           head.find("<VTKFile") != std::string_view::npos;
+}
+
 /// Reader for a content signature, or nullptr.
 Reader reader_by_content(std::string_view head) {
     if (head.starts_with("NRRD000")) return &read_nrrd;
+    if (io::to_lower(head.substr(0, 14)) == "# vtk datafile") return &read_legacy_vtk;
+    if (looks_like_vtk_xml(head)) return &read_vti;
+    if (looks_like_slc(head)) return &read_slc;
     if (looks_like_metaimage(head)) return &read_metaimage;
     return nullptr;
 }
 
 /// Reader for an extension (lower case, with the dot), or nullptr.
 Reader reader_by_extension(const std::string& ext) {
-    static constexpr std::array<std::pair<std::string_view, Reader>, 4> kByExtension{{
+    static constexpr std::array<std::pair<std::string_view, Reader>, 7> kByExtension{{
         {".nrrd", &read_nrrd},
         {".nhdr", &read_nrrd},
         {".mhd", &read_metaimage},
         {".mha", &read_metaimage},
+        {".slc", &read_slc},
+        {".vtk", &read_legacy_vtk},
+        {".vti", &read_vti},
     }};
     for (const auto& [e, r] : kByExtension)
         if (e == ext) return r;
