@@ -1,11 +1,18 @@
-// Frame time of the integrators on a synthetic 128³ uint8 volume (Google Benchmark).
+// Frame time of the integrators on a synthetic 128³ uint8 volume, and the
+// roofline: the inner loops alone with their data in L1/L2 (Google Benchmark).
 // Build with -DFATHOM_BUILD_BENCH=ON; run ./build/bench/fathom_bench.
 #include <cmath>
+#include <random>
+#include <vector>
 
 #include <benchmark/benchmark.h>
 
 #include "fathom/preintegration.h"
 #include "fathom/render.h"
+
+#include "integrate/alpha.h"
+#include "integrate/preintegrated.h"
+#include "render/medium.h"
 
 namespace {
 
@@ -53,8 +60,85 @@ void table_build(benchmark::State& state) {
         benchmark::DoNotOptimize(fathom::build_preintegration_table(c, 0.0, 255.0, 256, 1.0, true, threads));
 }
 
+// --- The roofline: this machine's peak per core for the inner loops. ---
+
+// A 64³ uint8 volume of smooth random values (256 KiB: fits L2).
+const fathom::Volume& cache_volume() {
+    static const fathom::Volume v = [] {
+        fathom::Volume r({64, 64, 64}, fathom::DType::u8);
+        auto* d = r.data<std::uint8_t>();
+        for (int k = 0; k < 64; ++k)
+            for (int j = 0; j < 64; ++j)
+                for (int i = 0; i < 64; ++i)
+                    d[i + 64 * (j + 64 * k)] = static_cast<std::uint8_t>(
+                        127.5 + 127.5 * std::sin(0.3 * i) * std::cos(0.23 * j) * std::sin(0.17 * k + 0.4));
+        return r;
+    }();
+    return v;
+}
+
+// Trilinear interpolation alone: 4096 positions (96 KiB) spread over the
+// volume, read in order; samples/s per core.
+void roofline_trilinear(benchmark::State& state) {
+    const fathom::GridSampler<std::uint8_t> g(cache_volume());
+    std::vector<fathom::Vec3> pos(4096);
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<double> u(0.0, 63.0);
+    for (auto& p : pos) p = {u(rng), u(rng), u(rng)};
+    double acc = 0;
+    for (auto _ : state) {
+        for (const auto& p : pos) acc += g(p);
+        benchmark::DoNotOptimize(acc);
+    }
+    state.counters["samples/s"] =
+        benchmark::Counter(static_cast<double>(pos.size()), benchmark::Counter::kIsIterationInvariantRate);
+}
+
+// A whole ray through the cached volume with one integrator's real code
+// (sample, classify, segment rule, compositing; no early termination, no
+// skipping): the per-sample peak the renderer's inner loop can reach.
+template <fathom::IntegratorKind K>
+void roofline_ray(benchmark::State& state) {
+    const fathom::Volume& v = cache_volume();
+    const auto tf = fathom::TransferFunction::preset("ct-soft-tissue", {0.0, 255.0});
+    const fathom::Classifier c(tf, 1.0);
+    const fathom::ScalarMedium<std::uint8_t> med{fathom::GridSampler<std::uint8_t>(v), &c};
+    fathom::RenderSettings s;
+    s.termination = 0.0;
+    s.integrator = K;
+    const double h = 0.25;
+    std::vector<fathom::RaySpan> spans;
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> u(0.0, 63.0);
+    for (int i = 0; i < 64; ++i) {
+        const fathom::Vec3 a{0.0, u(rng), u(rng)}, b{63.0, u(rng), u(rng)};
+        const fathom::Vec3 d = b - a;
+        const double len = fathom::length(d);
+        spans.push_back({0.0, len, a, d * (1.0 / len)});
+    }
+    std::int64_t samples = 0;
+    for (const auto& sp : spans) samples += fathom::segment_count(sp.length(), h);
+    const fathom::Rgb bg{0, 0, 0};
+    for (auto _ : state)
+        for (const auto& sp : spans) {
+            if constexpr (K == fathom::IntegratorKind::alpha)
+                benchmark::DoNotOptimize(
+                    fathom::integrate_alpha<fathom::Model::emission_absorption>(med, sp, s, h, bg, nullptr));
+            else
+                benchmark::DoNotOptimize(fathom::integrate_preintegrated<fathom::Model::emission_absorption>(
+                    med, sp, s, h, bg, K == fathom::IntegratorKind::preintegrated, nullptr));
+        }
+    state.counters["samples/s"] =
+        benchmark::Counter(static_cast<double>(samples), benchmark::Counter::kIsIterationInvariantRate);
+}
+
 }  // namespace
 
+BENCHMARK(roofline_trilinear);
+BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha)->Name("roofline_ray/alpha");
+BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated)->Name("roofline_ray/preintegrated");
+BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated_simple)
+    ->Name("roofline_ray/preintegrated-simple");
 BENCHMARK(table_build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(render, alpha, fathom::IntegratorKind::alpha)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, riemann, fathom::IntegratorKind::riemann)->Arg(256)->Unit(benchmark::kMillisecond);

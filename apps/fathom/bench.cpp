@@ -1,11 +1,15 @@
 // fathom bench: frame time of a scene (or a volume with a transfer function)
 // over several frames, the camera orbiting so that nothing is reused between
 // frames; median, min, pixels/s and segments/s, as text or JSON.
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <numeric>
+#include <string>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -24,6 +28,24 @@ struct BenchArgs {
     double turn = 10.0;  // degrees of azimuth per frame
     std::string json;
 };
+
+/// Peak resident set size of this process so far, in bytes.
+double peak_rss_bytes() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_maxrss) * 1024.0;  // Linux reports KiB
+}
+
+/// The CPU's model name (/proc/cpuinfo), or "unknown".
+std::string cpu_name() {
+    std::ifstream in("/proc/cpuinfo");
+    for (std::string line; std::getline(in, line);)
+        if (line.starts_with("model name")) {
+            const auto colon = line.find(':');
+            if (colon != std::string::npos && colon + 2 <= line.size()) return line.substr(colon + 2);
+        }
+    return "unknown";
+}
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -47,7 +69,9 @@ void run_bench(const BenchArgs& a) {
     const auto t_load = std::chrono::steady_clock::now();
     const Scene sc = a.scene.load("bench");
     const double load_s = seconds_since(t_load);
+    const auto t_setup = std::chrono::steady_clock::now();
     const Renderer r = sc.renderer();
+    const double setup_s = seconds_since(t_setup);
     const Vec3 center = volume_bounds(sc.volume).center;
     std::vector<double> times;
     std::uint64_t segments = 0;
@@ -73,7 +97,16 @@ void run_bench(const BenchArgs& a) {
                      {"step", sc.settings.step},
                      {"threads", threads},
                      {"frames", a.frames},
+                     {"preset", a.scene.preset},
+                     {"dims", sc.volume.dims()},
+                     {"dtype", std::string(dtype_name(sc.volume.dtype()))},
+                     {"skip_empty", sc.settings.skip_empty},
+                     {"cpu", cpu_name()},
+                     {"hardware_threads", std::thread::hardware_concurrency()},
                      {"load_seconds", load_s},
+                     {"setup_seconds", setup_s},
+                     {"volume_bytes", static_cast<double>(sc.volume.size_bytes())},
+                     {"peak_rss_bytes", peak_rss_bytes()},
                      {"frame_seconds", times},
                      {"median_seconds", median},
                      {"min_seconds", sorted.front()},
@@ -81,10 +114,11 @@ void run_bench(const BenchArgs& a) {
                      {"segments_per_second", static_cast<double>(segments) / total}};
     std::printf(
         "%s %dx%d %s step %g, %d threads: median %.3f s, min %.3f s (%d frames), %.3g pixels/s, %.3g "
-        "segments/s; load %.2f s\n",
+        "segments/s; load %.2f s, setup %.3f s, peak RSS %.0f MB\n",
         j["scene"].get<std::string>().c_str(), sc.settings.width, sc.settings.height,
         std::string(to_string(sc.settings.integrator)).c_str(), sc.settings.step, threads, median,
-        sorted.front(), a.frames, pixels / median, static_cast<double>(segments) / total, load_s);
+        sorted.front(), a.frames, pixels / median, static_cast<double>(segments) / total, load_s, setup_s,
+        peak_rss_bytes() / 1e6);
     if (!a.json.empty()) write_text_file(a.json, j.dump(2) + "\n");
 }
 
