@@ -4,6 +4,7 @@
 // associated emission q(v) (g = q).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <optional>
@@ -49,6 +50,32 @@ private:
     std::vector<double> v_;
     std::vector<Value> y_;
 };
+
+// Inline: these run once or twice per sample.
+template <int N>
+inline std::size_t PiecewiseLinear<N>::piece(double v) const {
+    // Linear scan for the short functions transfer functions are (fewer
+    // mispredicted branches than a binary search), bisection beyond.
+    if (v_.size() <= 8) {
+        std::size_t p = 0;
+        while (p < v_.size() && v_[p] <= v) ++p;
+        return p;
+    }
+    return static_cast<std::size_t>(std::upper_bound(v_.begin(), v_.end(), v) - v_.begin());
+}
+
+template <int N>
+inline typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::on_piece(std::size_t p, double v) const {
+    // Piece p lies between knot p−1 (the last point at its v: at a jump the
+    // last one holds) and knot p, which is strictly larger.
+    if (p == 0) return y_.front();
+    if (p >= v_.size()) return y_.back();
+    const std::size_t k = p - 1;
+    const double w = (v - v_[k]) / (v_[k + 1] - v_[k]);
+    Value r;
+    for (int c = 0; c < N; ++c) r[c] = y_[k][c] + w * (y_[k + 1][c] - y_[k][c]);
+    return r;
+}
 
 /// The transfer function as written (fathom-tf/1). Opacity points keep their
 /// opacity until the unit distance is known (it defaults to the volume's

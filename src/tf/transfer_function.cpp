@@ -25,24 +25,6 @@ PiecewiseLinear<N>::PiecewiseLinear(std::vector<std::pair<double, Value>> points
 }
 
 template <int N>
-std::size_t PiecewiseLinear<N>::piece(double v) const {
-    return static_cast<std::size_t>(std::upper_bound(v_.begin(), v_.end(), v) - v_.begin());
-}
-
-template <int N>
-typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::on_piece(std::size_t p, double v) const {
-    // Piece p lies between knot p−1 (the last point at its v: at a jump the
-    // last one holds) and knot p, which is strictly larger.
-    if (p == 0) return y_.front();
-    if (p >= v_.size()) return y_.back();
-    const std::size_t k = p - 1;
-    const double w = (v - v_[k]) / (v_[k + 1] - v_[k]);
-    Value r;
-    for (int c = 0; c < N; ++c) r[c] = y_[k][c] + w * (y_[k + 1][c] - y_[k][c]);
-    return r;
-}
-
-template <int N>
 bool PiecewiseLinear<N>::zero_on(double a, double b) const {
     if (v_.empty() || !(a <= b)) return false;
     auto zero = [](const Value& y) {
