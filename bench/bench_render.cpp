@@ -97,7 +97,7 @@ void roofline_trilinear(benchmark::State& state) {
 // A whole ray through the cached volume with one integrator's real code
 // (sample, classify, segment rule, compositing; no early termination, no
 // skipping): the per-sample peak the renderer's inner loop can reach.
-template <fathom::IntegratorKind K>
+template <fathom::IntegratorKind K, bool Simd = false>
 void roofline_ray(benchmark::State& state) {
     const fathom::Volume& v = cache_volume();
     const auto tf = fathom::TransferFunction::preset("ct-soft-tissue", {0.0, 255.0});
@@ -119,11 +119,14 @@ void roofline_ray(benchmark::State& state) {
     std::int64_t samples = 0;
     for (const auto& sp : spans) samples += fathom::segment_count(sp.length(), h);
     const fathom::Rgb bg{0, 0, 0};
+    const auto fs = fathom::simd::flatten(c.sigma_function()), fc = fathom::simd::flatten(c.color_function());
+    const fathom::simd::BatchSource batch{v.bytes(), v.dtype(), 64, 64, 64, &fs, &fc};
+    const fathom::Accel acc{nullptr, Simd ? &batch : nullptr};
     for (auto _ : state)
         for (const auto& sp : spans) {
             if constexpr (K == fathom::IntegratorKind::alpha)
                 benchmark::DoNotOptimize(
-                    fathom::integrate_alpha<fathom::Model::emission_absorption>(med, sp, s, h, bg, nullptr));
+                    fathom::integrate_alpha<fathom::Model::emission_absorption>(med, sp, s, h, bg, acc));
             else
                 benchmark::DoNotOptimize(fathom::integrate_preintegrated<fathom::Model::emission_absorption>(
                     med, sp, s, h, bg, K == fathom::IntegratorKind::preintegrated, nullptr));
@@ -136,6 +139,7 @@ void roofline_ray(benchmark::State& state) {
 
 BENCHMARK(roofline_trilinear);
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha)->Name("roofline_ray/alpha");
+BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha, true)->Name("roofline_ray/alpha-simd");
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated)->Name("roofline_ray/preintegrated");
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated_simple)
     ->Name("roofline_ray/preintegrated-simple");

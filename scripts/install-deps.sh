@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
   zlib1g-dev libpng-dev libopenexr-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
-  libgtest-dev libbenchmark-dev
+  libgtest-dev libbenchmark-dev libhwy-dev
 )
 missing=()
 for p in "${packages[@]}"; do

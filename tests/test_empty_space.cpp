@@ -199,3 +199,23 @@ TEST(EmptySpace, PreclassifiedGridImagesAreBitIdentical) {
             }
         }
 }
+
+// A small blob in a large box: whole coarse cells (4³ macrocells) are empty
+// and rays cross them in one step; images stay bit-identical.
+TEST(EmptySpace, CoarseCellsSkipLargeEmptyRegionsExactly) {
+    Volume v = make_volume(83, 71, 97, [](double x, double y, double z) {
+        const double d = std::sqrt((x - 60) * (x - 60) + (y - 50) * (y - 50) + (z - 70) * (z - 70));
+        return std::max(0.0, 1.0 - d / 9.0);
+    });
+    v.set_spacing({1.0, 1.2, 0.9});
+    const Classifier c(blob_tf(), v.smallest_spacing());
+    for (int shift : {2, 3}) {
+        const EmptySpace es = EmptySpace::for_scalar(v, c, Model::emission_absorption, shift, 1);
+        EXPECT_TRUE(es.empty(es.cell({1, 1, 1}, 1), 1)) << shift;
+        EXPECT_FALSE(es.empty(es.cell({60, 50, 70}, 1), 1)) << shift;
+    }
+    for (auto k : kSkipping)
+        for (auto o : {Order::front_to_back, Order::back_to_front})
+            EXPECT_EQ(compare_scalar(v, blob_tf(), base(k, Model::emission_absorption, o)), 0)
+                << to_string(k) << " " << to_string(o);
+}

@@ -63,6 +63,7 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
     if (a.o_threads->count()) s.threads = a.threads;
     if (a.jitter) s.jitter = true;
     if (a.no_skip_empty) s.skip_empty = false;
+    if (a.no_simd) s.simd = false;
     if (a.o_seed->count()) s.jitter_seed = a.jitter_seed;
     if (!a.background.empty()) {
         if (a.background == "transparent") {
@@ -110,6 +111,8 @@ void SceneArgs::add_to(CLI::App* cmd) {
     this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
     cmd->add_flag("--no-skip-empty", this->no_skip_empty,
                   "Turn off exact empty-space skipping (same image; to measure what it buys)");
+    cmd->add_flag("--no-simd", this->no_simd,
+                  "Turn off SIMD sample classification (same image; to measure it)");
 }
 
 Scene SceneArgs::load(const std::string& command) const {

@@ -18,6 +18,7 @@ struct SceneArgs {
     double step = 0, termination = 0;
     bool jitter = false;
     bool no_skip_empty = false;
+    bool no_simd = false;
     std::uint32_t jitter_seed = 0;
     CLI::Option* o_seed{};
     CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_termination{}, *o_threads{};

@@ -60,6 +60,9 @@ struct RenderSettings {
     /// Exact empty-space skipping (macrocells where the medium is exactly
     /// zero; the image is unchanged bit for bit). Off only to measure it.
     bool skip_empty = true;
+    /// SIMD classification of point samples (riemann, alpha) with runtime
+    /// dispatch; bit-identical to the scalar path. Off only to measure it.
+    bool simd = true;
 
     /// I_bg as the contract resolves it.
     [[nodiscard]] Rgb background_radiance() const;

@@ -11,8 +11,8 @@ namespace fathom {
 
 template <Model M, class Medium>
 RayResult integrate_alpha(const Medium& medium, const RaySpan& span, const RenderSettings& s, double h,
-                          const Rgb& bg, const EmptySpace* es) {
-    return integrate_point_sampled<M>(medium, span, s, h, bg, es, [](const MediumSample& m, double delta) {
+                          const Rgb& bg, const Accel& acc) {
+    return integrate_point_sampled<M>(medium, span, s, h, bg, acc, [](const MediumSample& m, double delta) {
         const double alpha = -std::expm1(-m.sigma * delta);             // α_i = 1 − e^{−σδ}
         const double weight = m.sigma > 0.0 ? alpha / m.sigma : delta;  // (1 − e^{−σδ})/σ
         Segment seg{std::exp(-m.sigma * delta), {}};

@@ -4,25 +4,66 @@
 // sample into the segment's (transmittance, radiance).
 #pragma once
 
+#include <algorithm>
+#include <limits>
+
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
+#include "integrate/simd_classify.h"
 #include "render/empty_space.h"
 
 namespace fathom {
 
+/// What speeds a ray up without changing its result: empty-space skipping
+/// and SIMD classification of point samples (nullptr: off).
+struct Accel {
+    const EmptySpace* es = nullptr;
+    const simd::BatchSource* simd = nullptr;
+};
+
 template <Model M, class Medium, class Rule>
 RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, const RenderSettings& s,
-                                  double h, const Rgb& bg, const EmptySpace* es, Rule&& rule) {
+                                  double h, const Rgb& bg, const Accel& acc, Rule&& rule) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
     const double offset =
         span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
     const SampleGrid grid{&span, delta, offset, 1};  // eq. (8): segment i sampled at t_{i−1} + offset·δ
+    // SIMD: samples classified kBatch at a time, in the direction of travel.
+    const simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, offset, 1};
+    simd::BatchOut batch;
+    std::int64_t b0 = std::numeric_limits<std::int64_t>::min() / 2, b1 = b0;  // batch holds b0..b1
+    // The far end of the run being evaluated (set by the skipping walk):
+    // batches stop there, since what follows may be skipped.
+    std::int64_t run_end = s.order == Order::front_to_back ? n : 1;
+    auto sample = [&](std::int64_t i) -> MediumSample {
+        if constexpr (Medium::kHasScalar) {
+            if (acc.simd != nullptr) {
+                if (i < b0 || i > b1) {
+                    if (s.order == Order::front_to_back) {
+                        b0 = i;
+                        b1 = std::min<std::int64_t>(i + simd::kBatch - 1, std::max(i, run_end));
+                    } else {
+                        b0 = std::max<std::int64_t>(i - simd::kBatch + 1, std::min(i, run_end));
+                        b1 = i;
+                    }
+                    simd::classify_batch(*acc.simd, rg, b0, static_cast<int>(b1 - b0 + 1), batch);
+                }
+                const auto l = static_cast<std::size_t>(i - b0);
+                MediumSample m{batch.sigma[l], {batch.color[0][l], batch.color[1][l], batch.color[2][l]}};
+                if (!medium.tf->associated())  // as ScalarMedium::classify
+                    for (double& c : m.source) c *= m.sigma;
+                return m;
+            }
+        }
+        return medium.at(grid.at(i));
+    };
     auto segment = [&](std::int64_t i) {
-        MediumSample m = medium.at(grid.at(i));
+        MediumSample m = sample(i);
         apply_model<M>(m.sigma, m.source);
         return rule(m, delta);
     };
+    const EmptySpace* es = acc.es;
     if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
     // Samples in an empty macrocell give (1, 0): skip each run of them;
     // evaluate each run in a non-empty one without further lookups.
@@ -30,6 +71,7 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
     return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) {
         const auto run = runs.run(i, dir, dir > 0 ? n : 1);
         const std::int64_t count = dir * (run.last - i) + 1;
+        run_end = run.last;
         return run.empty ? count : -count;
     });
 }

@@ -10,8 +10,8 @@ namespace fathom {
 
 template <Model M, class Medium>
 RayResult integrate_riemann(const Medium& medium, const RaySpan& span, const RenderSettings& s, double h,
-                            const Rgb& bg, const EmptySpace* es) {
-    return integrate_point_sampled<M>(medium, span, s, h, bg, es, [](const MediumSample& m, double delta) {
+                            const Rgb& bg, const Accel& acc) {
+    return integrate_point_sampled<M>(medium, span, s, h, bg, acc, [](const MediumSample& m, double delta) {
         Segment seg{std::exp(-m.sigma * delta), {}};
         for (int c = 0; c < 3; ++c) seg.radiance[c] = m.source[c] * delta;
         return seg;

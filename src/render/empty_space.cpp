@@ -73,9 +73,9 @@ EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m
     if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return es;
     es.shift_ = shift;
     es.nodes_ = v.dims();
-    es.mdims_ = macro_dims(v, shift);
-    const auto ranges = macrocell_ranges(v, es.mdims_, shift, resolve_threads(threads));
-    es.empty_.resize(ranges.size());
+    es.dims_[0] = macro_dims(v, shift);
+    const auto ranges = macrocell_ranges(v, es.dims_[0], shift, resolve_threads(threads));
+    es.empty_[0].resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const Range& r = ranges[i];
         if (r.nan) continue;
@@ -86,9 +86,10 @@ EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m
         const bool e = m == Model::absorption ? no_sigma
                        : m == Model::emission ? no_source
                                               : no_sigma && no_source;
-        es.empty_[i] = e ? 1 : 0;
+        es.empty_[0][i] = e ? 1 : 0;
         es.any_ = es.any_ || e;
     }
+    es.build_coarse();
     return es;
 }
 
@@ -96,22 +97,36 @@ EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads
     EmptySpace es;
     es.shift_ = shift;
     es.nodes_ = density.dims();
-    es.mdims_ = macro_dims(density, shift);
-    const auto ranges = macrocell_ranges(density, es.mdims_, shift, resolve_threads(threads));
-    es.empty_.resize(ranges.size());
+    es.dims_[0] = macro_dims(density, shift);
+    const auto ranges = macrocell_ranges(density, es.dims_[0], shift, resolve_threads(threads));
+    es.empty_[0].resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const bool e = !ranges[i].nan && ranges[i].lo == 0.0 && ranges[i].hi == 0.0;
-        es.empty_[i] = e ? 1 : 0;
+        es.empty_[0][i] = e ? 1 : 0;
         es.any_ = es.any_ || e;
     }
+    es.build_coarse();
     return es;
 }
 
+void EmptySpace::build_coarse() {
+    const auto& f = dims_[0];
+    auto& c = dims_[1];
+    for (int a = 0; a < 3; ++a) c[a] = ((f[a] - 1) >> kCoarse) + 1;
+    empty_[1].assign(static_cast<std::size_t>(c[0] * c[1] * c[2]), 1);
+    for (std::int64_t z = 0; z < f[2]; ++z)
+        for (std::int64_t y = 0; y < f[1]; ++y)
+            for (std::int64_t x = 0; x < f[0]; ++x)
+                if (!empty_[0][static_cast<std::size_t>(x + f[0] * (y + f[1] * z))])
+                    empty_[1][static_cast<std::size_t>((x >> kCoarse) +
+                                                       c[0] * ((y >> kCoarse) + c[1] * (z >> kCoarse)))] = 0;
+}
+
 double EmptySpace::empty_fraction() const {
-    if (empty_.empty()) return 0.0;
+    if (empty_[0].empty()) return 0.0;
     std::size_t n = 0;
-    for (auto e : empty_) n += e;
-    return static_cast<double>(n) / static_cast<double>(empty_.size());
+    for (auto e : empty_[0]) n += e;
+    return static_cast<double>(n) / static_cast<double>(empty_[0].size());
 }
 
 }  // namespace fathom

@@ -34,6 +34,9 @@
 
 #include "integrate/ray_span.h"
 
+// Small functions on the per-sample path that GCC otherwise leaves out of line.
+#define FATHOM_INLINE inline __attribute__((always_inline))
+
 namespace fathom {
 
 class EmptySpace {
@@ -49,24 +52,36 @@ public:
     [[nodiscard]] bool any() const { return any_; }
     [[nodiscard]] double empty_fraction() const;
 
-    /// The macrocell of a position, chosen as GridSampler picks the cell.
-    [[nodiscard]] std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
-        return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
+    /// Macrocells are grouped 4³ into coarse cells, empty when all of theirs
+    /// are: a ray crosses large empty regions in few steps.
+    static constexpr int kCoarse = 2;
+
+    /// The macrocell (level 0) or coarse cell (level 1) of a position, the
+    /// cell chosen as GridSampler picks it.
+    [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> cell(const Vec3& p, int level) const {
+        const int sh = shift_ + level * kCoarse;
+        return {axis_cell(p.x, 0) >> sh, axis_cell(p.y, 1) >> sh, axis_cell(p.z, 2) >> sh};
     }
-    [[nodiscard]] bool empty(const std::array<std::int64_t, 3>& m) const {
-        return empty_[static_cast<std::size_t>(m[0] + mdims_[0] * (m[1] + mdims_[1] * m[2]))] != 0;
+    [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
+        return cell(p, 0);
+    }
+    [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m, int level = 0) const {
+        const auto& d = dims_[level];
+        return empty_[level][static_cast<std::size_t>(m[0] + d[0] * (m[1] + d[1] * m[2]))] != 0;
     }
 
     /// The ray parameter where the ray leaves (dir = +1) or enters
-    /// (dir = −1) macrocell m's box; inv_dp = 1/dp per axis (an estimate:
-    /// callers verify on computed positions).
-    [[nodiscard]] double box_exit(const RaySpan& sp, const Vec3& inv_dp, const std::array<std::int64_t, 3>& m,
-                                  int dir) const {
+    /// (dir = −1) cell m's box at `level`; inv_dp = 1/dp per axis (an
+    /// estimate: callers verify on computed positions).
+    [[nodiscard]] FATHOM_INLINE double box_exit(const RaySpan& sp, const Vec3& inv_dp,
+                                                const std::array<std::int64_t, 3>& m, int dir,
+                                                int level) const {
+        const int sh = shift_ + level * kCoarse;
         double t = dir > 0 ? INFINITY : -INFINITY;
         for (int a = 0; a < 3; ++a) {
             if (sp.dp[a] == 0.0) continue;
-            const double lo = static_cast<double>(m[a] << shift_);
-            const double hi = static_cast<double>(std::min((m[a] + 1) << shift_, nodes_[a] - 1));
+            const double lo = static_cast<double>(m[a] << sh);
+            const double hi = static_cast<double>(std::min((m[a] + 1) << sh, nodes_[a] - 1));
             const bool up = (sp.dp[a] > 0.0) == (dir > 0);
             const double ta = ((up ? hi : lo) - sp.p0[a]) * inv_dp[a];
             t = dir > 0 ? std::min(t, ta) : std::max(t, ta);
@@ -75,15 +90,16 @@ public:
     }
 
 private:
-    [[nodiscard]] std::int64_t axis_cell(double p, int a) const {
+    void build_coarse();
+    [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
         const double x = std::clamp(p, 0.0, static_cast<double>(nodes_[a] - 1));
         return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
     }
 
     int shift_ = 3;
     std::array<std::int64_t, 3> nodes_{};
-    std::array<std::int64_t, 3> mdims_{};
-    std::vector<std::uint8_t> empty_;
+    std::array<std::int64_t, 3> dims_[2]{};  // macrocells, coarse cells
+    std::vector<std::uint8_t> empty_[2];     // per level
     bool any_ = false;
 };
 
@@ -96,10 +112,10 @@ struct SampleGrid {
     const RaySpan* span;
     double delta, offset;
     std::int64_t first;
-    [[nodiscard]] double t(std::int64_t j) const {
+    [[nodiscard]] FATHOM_INLINE double t(std::int64_t j) const {
         return span->t_near + (static_cast<double>(j - first) + offset) * delta;
     }
-    [[nodiscard]] Vec3 at(std::int64_t j) const { return span->at(t(j)); }
+    [[nodiscard]] FATHOM_INLINE Vec3 at(std::int64_t j) const { return span->at(t(j)); }
 };
 
 /// Walks runs of samples through macrocells for one ray: run(j, dir, limit)
@@ -120,8 +136,20 @@ public:
           inv_delta_(1.0 / grid.delta) {}
 
     Run run(std::int64_t j, int dir, std::int64_t limit) const {
-        const auto m = es_.macrocell(g_.at(j));
-        const double tb = es_.box_exit(*g_.span, inv_dp_, m, dir);
+        const Vec3 pj = g_.at(j);
+        const auto m = es_.macrocell(pj);
+        if (!es_.empty(m)) return {last_in(m, 0, j, dir, limit), false};
+        const auto c = es_.cell(pj, 1);
+        if (es_.empty(c, 1)) return {last_in(c, 1, j, dir, limit), true};
+        return {last_in(m, 0, j, dir, limit), true};
+    }
+
+private:
+    // The farthest index from j towards limit whose position is in cell m
+    // at `level` (sample j is in it).
+    [[nodiscard]] FATHOM_INLINE std::int64_t last_in(const std::array<std::int64_t, 3>& m, int level,
+                                                     std::int64_t j, int dir, std::int64_t limit) const {
+        const double tb = es_.box_exit(*g_.span, inv_dp_, m, dir, level);
         // the fractional index of the box exit (inverse of SampleGrid::t)
         double x = (tb - g_.span->t_near) * inv_delta_ - g_.offset + static_cast<double>(g_.first);
         std::int64_t k = limit;
@@ -132,11 +160,10 @@ public:
             k = static_cast<std::int64_t>(std::clamp(x, lo, hi));
         }
         // Verify on the computed positions (rounding can move the last one out).
-        while (k != j && es_.macrocell(g_.at(k)) != m) k -= dir;
-        return {k, es_.empty(m)};
+        while (k != j && es_.cell(g_.at(k), level) != m) k -= dir;
+        return k;
     }
 
-private:
     const EmptySpace& es_;
     SampleGrid g_;
     Vec3 inv_dp_;

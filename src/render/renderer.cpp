@@ -30,6 +30,8 @@ struct Renderer::Impl {
     double h = 0;  // step in world units
     Rgb bg{};
     EmptySpace empty_space;
+    simd::FlatFunction flat_sigma, flat_color;
+    simd::BatchSource batch;  // batch.data == nullptr: no SIMD
     Tracer tracer;
 
     /// The macrocells to skip, or nullptr when skipping is off or useless.
@@ -73,14 +75,16 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     const double h = im.h;
     const Rgb bg = im.bg;
     const EmptySpace* es = im.skipper();
+    const Accel acc{es, im.batch.data != nullptr ? &im.batch : nullptr};
     switch (s.integrator) {
         case IntegratorKind::riemann:
-            return [med, s, h, bg, es](const RaySpan& sp) {
-                return integrate_riemann<M>(med, sp, s, h, bg, es);
+            return [med, s, h, bg, acc](const RaySpan& sp) {
+                return integrate_riemann<M>(med, sp, s, h, bg, acc);
             };
         case IntegratorKind::alpha:
-            return
-                [med, s, h, bg, es](const RaySpan& sp) { return integrate_alpha<M>(med, sp, s, h, bg, es); };
+            return [med, s, h, bg, acc](const RaySpan& sp) {
+                return integrate_alpha<M>(med, sp, s, h, bg, acc);
+            };
         case IntegratorKind::reference: {
             const std::vector<double>* breaks = &im.tf.breakpoints();
             return [med, s, bg, breaks](const RaySpan& sp) {
@@ -174,6 +178,12 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
     if (impl_->s.skip_empty)
         impl_->empty_space = EmptySpace::for_scalar(volume, impl_->tf, impl_->s.model,
                                                     macrocell_shift(impl_->s.integrator), impl_->s.threads);
+    if (impl_->s.simd) {
+        impl_->flat_sigma = simd::flatten(impl_->tf.sigma_function());
+        impl_->flat_color = simd::flatten(impl_->tf.color_function());
+        impl_->batch = {volume.bytes(),   volume.dtype(),     volume.dims()[0],  volume.dims()[1],
+                        volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color};
+    }
     impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
         ScalarMedium<T> med{GridSampler<T>(volume), &impl_->tf};
         return make_tracer(med, *impl_);

@@ -1,0 +1,181 @@
+// Highway's foreach_target: this file is compiled once per x86 target and
+// classify_batch dispatches at run time (src/integrate/simd_classify.h).
+#include "integrate/simd_classify.h"
+
+#include <algorithm>
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "integrate/simd_classify.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace fathom::simd {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+using D = hn::ScalableTag<double>;
+using V = hn::Vec<D>;
+
+/// f(v) per lane for each component, as PiecewiseLinear::on_piece(piece(v),
+/// v) computes it: the same operations in the same order.
+HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
+    const auto& kn = f.knots;
+    const std::size_t n = kn.size();
+    const int nc = f.components;
+    if (n == 1) {
+        for (int c = 0; c < nc; ++c) out[c] = hn::Set(d, f.y[c][0]);
+        return;
+    }
+    V below = hn::Set(d, kn[0]), above = hn::Set(d, kn[n - 1]);
+    V y0[3], y1[3];
+    for (int c = 0; c < nc; ++c) {
+        y0[c] = hn::Set(d, f.y[c][0]);
+        y1[c] = hn::Set(d, f.y[c][n - 1]);
+    }
+    auto any_below = hn::Le(hn::Set(d, kn[0]), v);
+    for (std::size_t i = 1; i < n; ++i) {  // the last knot ≤ v
+        const auto m = hn::Le(hn::Set(d, kn[i]), v);
+        below = hn::IfThenElse(m, hn::Set(d, kn[i]), below);
+        for (int c = 0; c < nc; ++c) y0[c] = hn::IfThenElse(m, hn::Set(d, f.y[c][i]), y0[c]);
+    }
+    auto any_above = hn::Lt(v, hn::Set(d, kn[n - 1]));
+    for (std::size_t i = n - 1; i-- > 0;) {  // the first knot > v
+        const auto m = hn::Lt(v, hn::Set(d, kn[i]));
+        above = hn::IfThenElse(m, hn::Set(d, kn[i]), above);
+        for (int c = 0; c < nc; ++c) y1[c] = hn::IfThenElse(m, hn::Set(d, f.y[c][i]), y1[c]);
+    }
+    const V w = hn::Div(hn::Sub(v, below), hn::Sub(above, below));
+    for (int c = 0; c < nc; ++c) {
+        const V r = hn::Add(y0[c], hn::Mul(w, hn::Sub(y1[c], y0[c])));
+        // p = 0: the first value; p = n: the last
+        out[c] = hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, hn::Set(d, f.y[c][n - 1])),
+                                hn::Set(d, f.y[c][0]));
+    }
+}
+
+template <class T>
+void classify_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+    const D d;
+    const std::size_t N = hn::Lanes(d);
+    const T* data = static_cast<const T*>(src.data);
+    const std::int64_t sy = src.nx, sz = src.nx * src.ny;
+    const double hi[3] = {static_cast<double>(src.nx - 1), static_cast<double>(src.ny - 1),
+                          static_cast<double>(src.nz - 1)};
+    const double last[3] = {static_cast<double>(src.nx - 2), static_cast<double>(src.ny - 2),
+                            static_cast<double>(src.nz - 2)};
+    const double p0[3] = {ray.p0.x, ray.p0.y, ray.p0.z}, dp[3] = {ray.dp.x, ray.dp.y, ray.dp.z};
+    HWY_ALIGN double cell[3][kBatch];
+    HWY_ALIGN double frac[3][kBatch];
+    HWY_ALIGN double corner[8][kBatch];
+    // whole vectors covering count samples
+    const std::size_t used = std::min<std::size_t>(kBatch, (static_cast<std::size_t>(count) + N - 1) / N * N);
+    for (std::size_t b = 0; b < used; b += N) {
+        // t = t_near + (j − first + offset)·δ, p = p0 + dp·t (RaySpan::at)
+        const V jj = hn::Iota(d, static_cast<double>(j0 + static_cast<std::int64_t>(b) - ray.first));
+        const V t = hn::Add(hn::Set(d, ray.t_near),
+                            hn::Mul(hn::Add(jj, hn::Set(d, ray.offset)), hn::Set(d, ray.delta)));
+        for (int a = 0; a < 3; ++a) {
+            // GridSampler::locate: clamp, the cell (≤ n − 2) and the fraction
+            const V p = hn::Add(hn::Set(d, p0[a]), hn::Mul(hn::Set(d, dp[a]), t));
+            const V x = hn::Min(hn::Max(p, hn::Zero(d)), hn::Set(d, hi[a]));
+            const V i = hn::Min(hn::Floor(x), hn::Set(d, last[a]));
+            hn::Store(i, d, cell[a] + b);
+            hn::Store(hn::Sub(x, i), d, frac[a] + b);
+        }
+    }
+    for (std::size_t b = 0; b < used; ++b) {
+        const std::int64_t base =
+            static_cast<std::int64_t>(cell[0][b]) +
+            src.nx * (static_cast<std::int64_t>(cell[1][b]) + src.ny * static_cast<std::int64_t>(cell[2][b]));
+        const T* q = data + base;
+        corner[0][b] = static_cast<double>(q[0]);
+        corner[1][b] = static_cast<double>(q[1]);
+        corner[2][b] = static_cast<double>(q[sy]);
+        corner[3][b] = static_cast<double>(q[sy + 1]);
+        corner[4][b] = static_cast<double>(q[sz]);
+        corner[5][b] = static_cast<double>(q[sz + 1]);
+        corner[6][b] = static_cast<double>(q[sz + sy]);
+        corner[7][b] = static_cast<double>(q[sz + sy + 1]);
+    }
+    for (std::size_t b = 0; b < used; b += N) {
+        auto c = [&](int k) { return hn::Load(d, corner[k] + b); };
+        const V fx = hn::Load(d, frac[0] + b), fy = hn::Load(d, frac[1] + b), fz = hn::Load(d, frac[2] + b);
+        // GridSampler::interpolate
+        const V c00 = hn::Add(c(0), hn::Mul(fx, hn::Sub(c(1), c(0))));
+        const V c10 = hn::Add(c(2), hn::Mul(fx, hn::Sub(c(3), c(2))));
+        const V c01 = hn::Add(c(4), hn::Mul(fx, hn::Sub(c(5), c(4))));
+        const V c11 = hn::Add(c(6), hn::Mul(fx, hn::Sub(c(7), c(6))));
+        const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
+        const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
+        const V v = hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0)));
+        V r[3];
+        eval(d, *src.sigma, v, r);
+        hn::Store(r[0], d, out.sigma + b);
+        eval(d, *src.color, v, r);
+        for (int k = 0; k < 3; ++k) hn::Store(r[k], d, out.color[k] + b);
+    }
+}
+
+void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+    visit_dtype(src.type, [&]<class T>(T*) { classify_typed<T>(src, ray, j0, count, out); });
+}
+
+std::int64_t TargetOf() {
+    return HWY_TARGET;
+}
+
+// NOLINTNEXTLINE(google-readability-namespace-comments)
+}  // namespace HWY_NAMESPACE
+}  // namespace fathom::simd
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace fathom::simd {
+
+HWY_EXPORT(ClassifyBatch);
+HWY_EXPORT(TargetOf);
+
+void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+    HWY_DYNAMIC_DISPATCH(ClassifyBatch)(src, ray, j0, count, out);
+}
+
+namespace {
+FlatFunction flatten_any(const std::vector<double>& knots, int components, auto&& value) {
+    FlatFunction f;
+    f.knots = knots;
+    f.components = components;
+    for (int c = 0; c < components; ++c)
+        for (std::size_t i = 0; i < knots.size(); ++i) f.y[c].push_back(value(i, c));
+    return f;
+}
+}  // namespace
+
+FlatFunction flatten(const PiecewiseLinear<1>& f) {
+    return flatten_any(f.knots(), 1, [&](std::size_t i, int) { return f.values()[i][0]; });
+}
+
+FlatFunction flatten(const PiecewiseLinear<3>& f) {
+    return flatten_any(f.knots(), 3,
+                       [&](std::size_t i, int c) { return f.values()[i][static_cast<std::size_t>(c)]; });
+}
+
+std::string active_target() {
+    return hwy::TargetName(HWY_DYNAMIC_DISPATCH(TargetOf)());
+}
+
+std::vector<std::int64_t> available_targets() {
+    std::vector<std::int64_t> r;
+    const std::int64_t supported = hwy::SupportedTargets();
+    for (std::int64_t t : hwy::SupportedAndGeneratedTargets())
+        if ((t & supported) != 0) r.push_back(t);
+    return r;
+}
+
+void force_target(std::int64_t target) {
+    hwy::SetSupportedTargetsForTest(target);
+    hwy::GetChosenTarget().Update(hwy::SupportedTargets());
+}
+
+}  // namespace fathom::simd
+#endif

@@ -1,0 +1,70 @@
+// SIMD classification of point samples along one ray (docs/performance.md
+// "SIMD"): positions, trilinear interpolation and the transfer function's
+// σ(v) and c(v) for a batch of consecutive samples, several lanes at once,
+// with runtime dispatch over the instruction sets this CPU has (Google
+// Highway: SSE2/SSSE3/SSE4, AVX2, AVX-512, or scalar emulation).
+//
+// Every lane performs exactly the scalar code's operations in the same
+// order (no fused multiply–add; the file is compiled with
+// -ffp-contract=off), so the results are bit-identical to GridSampler and
+// Classifier; tests check every target against the scalar path.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fathom/math.h"
+#include "fathom/transfer_function.h"
+#include "fathom/volume.h"
+
+namespace fathom::simd {
+
+/// Samples per batch (a multiple of every target's lane count).
+inline constexpr int kBatch = 16;
+
+/// A piecewise-linear function flattened for lane-parallel evaluation.
+struct FlatFunction {
+    std::vector<double> knots;
+    std::vector<double> y[3];  // per component; only y[0] for σ
+    int components = 1;
+};
+
+/// What the SIMD classifier needs: the volume, the ray's sample grid and
+/// the transfer function.
+struct BatchSource {
+    const void* data = nullptr;
+    DType type = DType::u8;
+    std::int64_t nx = 0, ny = 0, nz = 0;
+    const FlatFunction* sigma = nullptr;
+    const FlatFunction* color = nullptr;
+};
+
+struct RayGrid {
+    Vec3 p0, dp;
+    double t_near = 0, delta = 0, offset = 0;
+    std::int64_t first = 1;
+};
+
+/// σ and c (or q) of samples j0 .. j0 + kBatch − 1.
+struct BatchOut {
+    alignas(64) double sigma[kBatch];
+    alignas(64) double color[3][kBatch];
+};
+
+FlatFunction flatten(const PiecewiseLinear<1>& f);
+FlatFunction flatten(const PiecewiseLinear<3>& f);
+
+/// Classifies samples j0 .. j0 + count − 1 (count ≤ kBatch; whole vectors
+/// are computed, so a few more may be filled) with the best target.
+void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out);
+
+/// The name of the target classify_batch dispatches to now (e.g. "AVX2").
+std::string active_target();
+/// Every target compiled in and supported by this CPU (bit masks of
+/// Highway's target enum), for tests that force each in turn.
+std::vector<std::int64_t> available_targets();
+/// Forces one target (0: back to the best supported).
+void force_target(std::int64_t target);
+
+}  // namespace fathom::simd

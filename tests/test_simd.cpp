@@ -1,0 +1,92 @@
+// SIMD classification of point samples (src/integrate/simd_classify.h):
+// every target this CPU runs gives images bit-identical to the scalar path.
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+#include "fathom/render.h"
+#include "integrate/simd_classify.h"
+
+#include "synthetic.h"
+
+using namespace fathom;
+using fathom::test::make_volume;
+
+namespace {
+
+// A smooth field with a plateau of exact knot values, stored as `type`.
+Volume field(DType type) {
+    const Volume f = make_volume(23, 19, 27, [](double x, double y, double z) {
+        const double r = std::sqrt((x - 11) * (x - 11) + (y - 9) * (y - 9) + (z - 13) * (z - 13));
+        return r < 3 ? 150.0 : std::max(0.0, 200.0 - 12.0 * r) + 3.0 * std::sin(x + 2 * y);
+    });
+    Volume v(f.dims(), type);
+    v.set_spacing({1.0, 0.7, 1.3});
+    for (std::int64_t k = 0; k < f.dims()[2]; ++k)
+        for (std::int64_t j = 0; j < f.dims()[1]; ++j)
+            for (std::int64_t i = 0; i < f.dims()[0]; ++i) v.set_value(i, j, k, std::round(f.value(i, j, k)));
+    return v;
+}
+
+// Jumps, a knot exactly at the plateau's value, values beyond both ends.
+TransferFunction tf(bool associated) {
+    TransferFunction t;
+    t.alpha_kind = TransferFunction::Alpha::extinction;
+    t.alpha_points = {{20, 0.0}, {60, 0.05}, {100, 0.05}, {100, 0.2}, {150, 0.4}, {190, 0.1}};
+    t.associated = associated;
+    t.color_points = {{30, {0.1, 0.2, 0.9}}, {150, {1.0, 0.5, 0.2}}, {150, {0.9, 0.9, 0.9}}, {180, {1, 0, 0}}};
+    return t;
+}
+
+bool same(const Image& a, const Image& b) {
+    return a.rgba.size() == b.rgba.size() &&
+           std::memcmp(a.rgba.data(), b.rgba.data(), sizeof(float) * a.rgba.size()) == 0;
+}
+
+}  // namespace
+
+TEST(Simd, EveryTargetIsBitIdenticalToScalar) {
+    const auto targets = simd::available_targets();
+    ASSERT_FALSE(targets.empty());
+    int compared = 0;
+    for (DType type : {DType::u8, DType::u16, DType::i16, DType::f32, DType::f64}) {
+        const Volume v = field(type);
+        const Bounds b = volume_bounds(v);
+        for (bool associated : {false, true})
+            for (auto kind : {IntegratorKind::alpha, IntegratorKind::riemann})
+                for (auto order : {Order::front_to_back, Order::back_to_front}) {
+                    RenderSettings s;
+                    s.width = s.height = 24;
+                    s.integrator = kind;
+                    s.order = order;
+                    s.step = 0.37;
+                    s.jitter = order == Order::back_to_front;
+                    s.threads = 1;
+                    const Camera cam = Camera::orbit(37, 21, 2.4, b.center, b.radius);
+                    s.simd = false;
+                    const Image scalar = Renderer(v, tf(associated), s).render(cam);
+                    s.simd = true;
+                    for (auto t : targets) {
+                        simd::force_target(t);
+                        EXPECT_TRUE(same(Renderer(v, tf(associated), s).render(cam), scalar))
+                            << simd::active_target() << " " << dtype_name(type) << " " << to_string(kind) << " "
+                            << to_string(order) << (associated ? " associated" : "");
+                        ++compared;
+                    }
+                    simd::force_target(0);
+                }
+    }
+    EXPECT_GE(compared, 40);
+}
+
+TEST(Simd, DispatchesToTheBestTargetByDefault) {
+    simd::force_target(0);
+    const std::string best = simd::active_target();
+    EXPECT_FALSE(best.empty());
+    // The first target in the list Highway reports is the best one.
+    const auto targets = simd::available_targets();
+    ASSERT_FALSE(targets.empty());
+    simd::force_target(targets.front());
+    EXPECT_EQ(simd::active_target(), best);
+    simd::force_target(0);
+}
