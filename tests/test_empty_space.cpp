@@ -9,6 +9,7 @@
 
 #include "fathom/render.h"
 
+#include "integrate/preintegrated.h"
 #include "render/empty_space.h"
 #include "synthetic.h"
 
@@ -218,4 +219,30 @@ TEST(EmptySpace, CoarseCellsSkipLargeEmptyRegionsExactly) {
         for (auto o : {Order::front_to_back, Order::back_to_front})
             EXPECT_EQ(compare_scalar(v, blob_tf(), base(k, Model::emission_absorption, o)), 0)
                 << to_string(k) << " " << to_string(o);
+}
+
+// The pre-integrated shortcut for ramps where the medium is zero returns the
+// very bits the full evaluation gives, for every model and both variants.
+TEST(EmptySpace, ZeroRampShortcutMatchesTheFullIntegralBitForBit) {
+    int shortcuts = 0;
+    for (bool associated : {false, true}) {
+        const Classifier tf(blob_tf(associated), 1.0);
+        auto check = [&]<Model M>() {
+            for (int a = -3; a <= 14; ++a)
+                for (int b = -3; b <= 14; ++b)
+                    for (bool full : {true, false}) {
+                        const double vf = a * 0.05, vb = b * 0.05 + 0.013;
+                        RampIntegral<M> acc(0.7, full);
+                        for_each_ramp_piece(tf, vf, vb, [&](const RampPiece& p) { acc.add(p); });
+                        const Segment want = acc.result(),
+                                      got = preintegrate_scalar<M>(tf, vf, vb, 0.7, full);
+                        EXPECT_EQ(std::memcmp(&want, &got, sizeof(Segment)), 0) << vf << " " << vb;
+                        if (medium_zero_on(tf, M, std::min(vf, vb), std::max(vf, vb))) ++shortcuts;
+                    }
+        };
+        check.template operator()<Model::emission_absorption>();
+        check.template operator()<Model::absorption>();
+        check.template operator()<Model::emission>();
+    }
+    EXPECT_GT(shortcuts, 100);
 }

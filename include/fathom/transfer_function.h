@@ -49,6 +49,7 @@ public:
 private:
     std::vector<double> v_;
     std::vector<Value> y_;
+    std::vector<std::pair<double, double>> zero_runs_;  // [start, end) where every piece is 0
 };
 
 // Inline: these run once or twice per sample.

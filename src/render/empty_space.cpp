@@ -79,13 +79,7 @@ EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const Range& r = ranges[i];
         if (r.nan) continue;
-        const bool no_sigma = tf.sigma_zero_on(r.lo, r.hi);
-        // g = σ·c (zero with σ or c) or q.
-        const bool no_source =
-            tf.associated() ? tf.color_zero_on(r.lo, r.hi) : no_sigma || tf.color_zero_on(r.lo, r.hi);
-        const bool e = m == Model::absorption ? no_sigma
-                       : m == Model::emission ? no_source
-                                              : no_sigma && no_source;
+        const bool e = medium_zero_on(tf, m, r.lo, r.hi);
         es.empty_[0][i] = e ? 1 : 0;
         es.any_ = es.any_ || e;
     }

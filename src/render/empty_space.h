@@ -39,6 +39,16 @@
 
 namespace fathom {
 
+/// The medium under model m is exactly zero for every scalar in [a, b]:
+/// σ = 0 (absorption), g = 0 (emission: g = σ·c is zero with σ or c, q for
+/// an associated emission), both (emission–absorption). Conservative.
+inline bool medium_zero_on(const Classifier& tf, Model m, double a, double b) {
+    const bool no_sigma = tf.sigma_zero_on(a, b);
+    if (m == Model::absorption) return no_sigma;
+    if (tf.associated()) return (m == Model::emission || no_sigma) && tf.color_zero_on(a, b);
+    return no_sigma || (m == Model::emission && tf.color_zero_on(a, b));
+}
+
 class EmptySpace {
 public:
     EmptySpace() = default;

@@ -22,23 +22,45 @@ PiecewiseLinear<N>::PiecewiseLinear(std::vector<std::pair<double, Value>> points
         v_.push_back(v);
         y_.push_back(y);
     }
-}
-
-template <int N>
-bool PiecewiseLinear<N>::zero_on(double a, double b) const {
-    if (v_.empty() || !(a <= b)) return false;
+    // Runs of consecutive pieces whose defining values are all exactly 0.
+    // Piece p holds v in [v_{p−1}, v_p) (−∞ before the first knot, +∞ after
+    // the last); pieces between duplicate knots are never selected but
+    // still break a run (conservative).
+    const std::size_t n = v_.size();
+    if (n == 0) return;
     auto zero = [](const Value& y) {
         for (double c : y)
             if (c != 0.0) return false;
         return true;
     };
-    const std::size_t last = piece(b);
-    for (std::size_t p = piece(a); p <= last; ++p) {
-        if (p == 0 && !zero(y_.front())) return false;
-        if (p >= v_.size() && !zero(y_.back())) return false;
-        if (p > 0 && p < v_.size() && !(zero(y_[p - 1]) && zero(y_[p]))) return false;
+    auto zero_piece = [&](std::size_t p) {
+        if (p == 0) return zero(y_.front());
+        if (p >= n) return zero(y_.back());
+        return zero(y_[p - 1]) && zero(y_[p]);
+    };
+    for (std::size_t p = 0; p <= n;) {
+        if (!zero_piece(p)) {
+            ++p;
+            continue;
+        }
+        std::size_t q = p;
+        while (q + 1 <= n && zero_piece(q + 1)) ++q;
+        zero_runs_.push_back({p == 0 ? -INFINITY : v_[p - 1], q >= n ? INFINITY : v_[q]});
+        p = q + 1;
     }
-    return true;
+}
+
+template <int N>
+bool PiecewiseLinear<N>::zero_on(double a, double b) const {
+    if (!(a <= b)) return false;  // also NaN
+    // piece(a) and piece(b) in one run [start, end): start ≤ a and b < end
+    for (const auto& [start, end] : zero_runs_)
+        if (start <= a) {
+            if (b < end) return true;
+        } else {
+            break;
+        }
+    return false;
 }
 
 template class PiecewiseLinear<1>;
