@@ -225,3 +225,26 @@ TEST(Cli, BenchReportsFrameTimesAsJson) {
     EXPECT_GT(j["segments_per_second"].get<double>(), 0.0);
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 0", d).status, 2);
 }
+
+TEST(Cli, ClipPlaneAndCropFlags) {
+    TempDir d;
+    make_scene(d, R"(, "background": [0.25, 0.25, 0.25])");
+    const std::string scene = (d / "scene.json").string();
+    ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "full.pfm").string(), d).status, 0);
+    // A plane that keeps nothing of the volume (x ≥ 100): every pixel is the background.
+    CliRun r =
+        fathom_cli("render " + scene + " --clip-plane 100,0,0,1,0,0 -o " + (d / "none.pfm").string(), d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const fathom::Image none = fathom::read_pfm(d / "none.pfm"), full = fathom::read_pfm(d / "full.pfm");
+    for (int y = 0; y < none.height; ++y)
+        for (int x = 0; x < none.width; ++x) EXPECT_FLOAT_EQ(none.pixel(x, y)[0], 0.25f);
+    // A crop box holding the whole volume changes nothing.
+    r = fathom_cli("render " + scene + " --crop -1,-1,-1,100,100,100 -o " + (d / "crop.pfm").string(), d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(fathom::read_pfm(d / "crop.pfm").rgba, full.rgba);
+    EXPECT_EQ(fathom_cli("render " + scene + " --clip-plane 1,2,3 -o x.pfm", d).status, 2);
+    r = fathom_cli("render " + scene + " --clip-plane 0,0,0,0,0,0 -o " + (d / "bad.pfm").string(), d);
+    EXPECT_EQ(r.status, 2);  // a bad flag value is a usage error
+    EXPECT_NE(r.err.find("clipping plane"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(d / "bad.pfm"));
+}

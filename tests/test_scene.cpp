@@ -168,3 +168,27 @@ TEST(Scene, JitterKeys) {
     EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"jitter_seed": -1})"), d.path()).find("jitter_seed"),
               std::string::npos);
 }
+
+TEST(Scene, CropAndClipPlaneKeys) {
+    TempDir d;
+    raw_volume(d);
+    const std::string vol = R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})";
+    const Scene sc = parse_scene(scene_with(vol, R"(, "render": {"crop": {"min": [0, 0, 0], "max": [2, 2, 1]},
+                   "clip_planes": [{"point": [1, 1, 0.5], "normal": [0, 0, 1]}]})"),
+                                 d.path(), "s");
+    ASSERT_TRUE(sc.settings.crop.has_value());
+    EXPECT_DOUBLE_EQ(sc.settings.crop->max.x, 2.0);
+    ASSERT_EQ(sc.settings.clip_planes.size(), 1u);
+    EXPECT_DOUBLE_EQ(sc.settings.clip_planes[0].point.z, 0.5);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"crop": {"min": [0, 0, 0]}})"), d.path()).find("crop"),
+              std::string::npos);
+    EXPECT_NE(
+        error_of(
+            scene_with(vol, R"(, "render": {"clip_planes": [{"point": [0, 0, 0], "normal": [0, 0, 0]}]})"),
+            d.path())
+            .find("clipping plane"),
+        std::string::npos);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"clip_planes": {"point": [0, 0, 0]}})"), d.path())
+                  .find("clip_planes"),
+              std::string::npos);
+}

@@ -64,6 +64,20 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
     if (a.jitter) s.jitter = true;
     if (a.no_skip_empty) s.skip_empty = false;
     if (a.no_simd) s.simd = false;
+    if (!a.crop.empty()) {
+        const auto v = parse_numbers(a.crop, "--crop");
+        if (v.size() != 6) throw UsageError("--crop expects X0,Y0,Z0,X1,Y1,Z1 (world coordinates)");
+        s.crop = WorldBox{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
+    }
+    if (!a.clip_planes.empty()) {
+        s.clip_planes.clear();
+        for (const auto& text : a.clip_planes) {
+            const auto v = parse_numbers(text, "--clip-plane");
+            if (v.size() != 6)
+                throw UsageError("--clip-plane expects PX,PY,PZ,NX,NY,NZ (a point and a normal)");
+            s.clip_planes.push_back({{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
+        }
+    }
     if (a.o_seed->count()) s.jitter_seed = a.jitter_seed;
     if (!a.background.empty()) {
         if (a.background == "transparent") {
@@ -111,6 +125,11 @@ void SceneArgs::add_to(CLI::App* cmd) {
     this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
     cmd->add_flag("--no-skip-empty", this->no_skip_empty,
                   "Turn off exact empty-space skipping (same image; to measure what it buys)");
+    cmd->add_option("--crop", this->crop,
+                    "Cropping box X0,Y0,Z0,X1,Y1,Z1 in world coordinates (replaces the scene's)");
+    cmd->add_option("--clip-plane", this->clip_planes,
+                    "Clipping plane PX,PY,PZ,NX,NY,NZ (point, normal; keeps the side the normal points to); "
+                    "repeat for up to 6; replaces the scene's");
     cmd->add_flag("--no-simd", this->no_simd,
                   "Turn off SIMD sample classification (same image; to measure it)");
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "fathom/scene.h"
 
@@ -12,7 +13,8 @@
 namespace fathom::cli {
 
 struct SceneArgs {
-    std::string scene, volume, tf, preset, orbit, background;
+    std::string scene, volume, tf, preset, orbit, background, crop;
+    std::vector<std::string> clip_planes;
     int width = 0, height = 0, threads = 0;
     std::string model, integrator, order, sample_point, step_unit;
     double step = 0, termination = 0;

@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "fathom/camera.h"
 #include "fathom/image.h"
@@ -36,6 +37,19 @@ IntegratorKind parse_integrator(std::string_view s, const std::string& subject);
 SamplePoint parse_sample_point(std::string_view s, const std::string& subject);
 Order parse_order(std::string_view s, const std::string& subject);
 
+/// A clipping plane in world coordinates: keeps the points x with
+/// normal·(x − point) ≥ 0 (the side the normal points to, as VTK's
+/// clipping planes).
+struct ClipPlane {
+    Vec3 point;
+    Vec3 normal;
+};
+
+/// An axis-aligned box in world coordinates.
+struct WorldBox {
+    Vec3 min, max;
+};
+
 struct RenderSettings {
     int width = 512;
     int height = 512;
@@ -57,6 +71,11 @@ struct RenderSettings {
     /// Accuracy goal of the reference integrator (per channel, absolute for
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;
+    /// Cutting: rays keep only the part of the volume inside the cropping
+    /// box and on the kept side of every clipping plane (at most 6); the
+    /// uniform segment division applies to what is left (exact).
+    std::optional<WorldBox> crop;
+    std::vector<ClipPlane> clip_planes;
     /// Exact empty-space skipping (macrocells where the medium is exactly
     /// zero; the image is unchanged bit for bit). Off only to measure it.
     bool skip_empty = true;

@@ -212,7 +212,7 @@ int positive_int(const json& j, const std::string& where, const Ctx& cx) {
 void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
     only_keys(j,
               {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
-               "termination", "background", "jitter", "jitter_seed"},
+               "termination", "background", "jitter", "jitter_seed", "crop", "clip_planes"},
               "'render'", cx);
     if (j.contains("width")) s.width = positive_int(j["width"], "render 'width'", cx);
     if (j.contains("height")) s.height = positive_int(j["height"], "render 'height'", cx);
@@ -248,6 +248,28 @@ void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
         } else {
             const auto rgb = numbers<3>(b, "render 'background'", cx);
             s.background = Rgb{rgb[0], rgb[1], rgb[2]};
+        }
+    }
+    if (j.contains("crop")) {
+        const json& c = j["crop"];
+        if (!c.is_object())
+            cx.fail("render 'crop' must be an object {\"min\": [x, y, z], \"max\": [x, y, z]}");
+        only_keys(c, {"min", "max"}, "render 'crop'", cx);
+        if (!c.contains("min") || !c.contains("max")) cx.fail("render 'crop' needs 'min' and 'max'");
+        s.crop =
+            WorldBox{vec3(c["min"], "render 'crop' 'min'", cx), vec3(c["max"], "render 'crop' 'max'", cx)};
+    }
+    if (j.contains("clip_planes")) {
+        const json& a = j["clip_planes"];
+        if (!a.is_array())
+            cx.fail("render 'clip_planes' must be an array of {\"point\": [...], \"normal\": [...]}");
+        s.clip_planes.clear();
+        for (const json& p : a) {
+            if (!p.is_object() || !p.contains("point") || !p.contains("normal"))
+                cx.fail("each of render 'clip_planes' needs 'point' and 'normal'");
+            only_keys(p, {"point", "normal"}, "a clipping plane", cx);
+            s.clip_planes.push_back({vec3(p["point"], "clipping plane 'point'", cx),
+                                     vec3(p["normal"], "clipping plane 'normal'", cx)});
         }
     }
     try {

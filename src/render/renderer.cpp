@@ -39,11 +39,47 @@ struct Renderer::Impl {
         return s.skip_empty && empty_space.any() ? &empty_space : nullptr;
     }
 
-    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
+    /// The ray's span inside the volume, cropped and clipped; false when
+    /// nothing of it is left. t is the world distance along the ray in both
+    /// spaces (dp = M⁻¹·d with |d| = 1).
+    [[nodiscard]] bool span_of(const Ray& ray, RaySpan& span) const {
         const Vec3 p0 = world_to_index * (ray.origin - origin);
         const Vec3 dp = world_to_index * ray.dir;
+        if (!intersect_box(p0, dp, lattice->dims(), span)) return false;
+        if (!s.crop && s.clip_planes.empty()) return true;
+        double t0 = span.t_near, t1 = span.t_far;
+        if (s.crop) {
+            for (int a = 0; a < 3; ++a) {
+                const double o = ray.origin[a], d = ray.dir[a], lo = s.crop->min[a], hi = s.crop->max[a];
+                if (d == 0.0) {
+                    if (o < lo || o > hi) return false;
+                    continue;
+                }
+                double ta = (lo - o) / d, tb = (hi - o) / d;
+                if (ta > tb) std::swap(ta, tb);
+                t0 = std::max(t0, ta);
+                t1 = std::min(t1, tb);
+            }
+        }
+        for (const ClipPlane& pl : s.clip_planes) {  // keep n·(x(t) − p) = a + b·t ≥ 0
+            const double a = dot(pl.normal, ray.origin - pl.point), b = dot(pl.normal, ray.dir);
+            if (b == 0.0) {
+                if (a < 0.0) return false;
+            } else if (b > 0.0) {
+                t0 = std::max(t0, -a / b);
+            } else {
+                t1 = std::min(t1, -a / b);
+            }
+        }
+        if (!(t1 > t0)) return false;
+        span.t_near = t0;
+        span.t_far = t1;
+        return true;
+    }
+
+    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
         RaySpan span;
-        if (!intersect_box(p0, dp, lattice->dims(), span)) return {bg, 0.0};
+        if (!span_of(ray, span)) return {bg, 0.0};
         span.sample_offset = sample_offset;
         return tracer(span);
     }
@@ -278,10 +314,8 @@ std::uint64_t Renderer::count_segments(const Camera& camera) const {
     std::uint64_t total = 0;
     for (int y = 0; y < s.height; ++y)
         for (int x = 0; x < s.width; ++x) {
-            const Ray ray = camera.generate(x, y, s.width, s.height);
             RaySpan span;
-            if (intersect_box(impl_->world_to_index * (ray.origin - impl_->origin),
-                              impl_->world_to_index * ray.dir, impl_->lattice->dims(), span))
+            if (impl_->span_of(camera.generate(x, y, s.width, s.height), span))
                 total += static_cast<std::uint64_t>(segment_count(span.length(), impl_->h));
         }
     return total;

@@ -101,6 +101,16 @@ void RenderSettings::validate() const {
         for (double c : *background)
             if (!std::isfinite(c) || c < 0)
                 throw Error(subject, "'background' components must be finite and >= 0");
+    auto finite = [](const Vec3& v) {
+        return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
+    if (crop && (!finite(crop->min) || !finite(crop->max) || !(crop->min.x < crop->max.x) ||
+                 !(crop->min.y < crop->max.y) || !(crop->min.z < crop->max.z)))
+        throw Error(subject, "the cropping box needs finite corners with min < max on every axis");
+    if (clip_planes.size() > 6) throw Error(subject, "at most 6 clipping planes");
+    for (const auto& p : clip_planes)
+        if (!finite(p.point) || !finite(p.normal) || !(length(p.normal) > 0))
+            throw Error(subject, "a clipping plane needs a finite point and a finite, non-zero normal");
 }
 
 }  // namespace fathom
