@@ -248,3 +248,19 @@ TEST(Cli, ClipPlaneAndCropFlags) {
     EXPECT_NE(r.err.find("clipping plane"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(d / "bad.pfm"));
 }
+
+TEST(Cli, ShadeAndPhongFlags) {
+    TempDir d;
+    make_scene(d);
+    const std::string scene = (d / "scene.json").string();
+    ASSERT_EQ(fathom_cli("render " + scene + " -o " + (d / "flat.pfm").string(), d).status, 0);
+    CliRun r = fathom_cli("render " + scene + " --shade -o " + (d / "lit.pfm").string(), d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = fathom_cli("render " + scene + " --phong 0.1,0.7,0.2,10 -o " + (d / "phong.pfm").string(), d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto flat = fathom::read_pfm(d / "flat.pfm").rgba, lit = fathom::read_pfm(d / "lit.pfm").rgba;
+    EXPECT_NE(flat, lit);
+    EXPECT_EQ(lit, fathom::read_pfm(d / "phong.pfm").rgba);  // --phong with the defaults = --shade
+    EXPECT_EQ(fathom_cli("render " + scene + " --phong 1,2 -o x.pfm", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " --phong 0.1,0.7,-1,10 -o x.pfm", d).status, 2);
+}

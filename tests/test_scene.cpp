@@ -192,3 +192,30 @@ TEST(Scene, CropAndClipPlaneKeys) {
                   .find("clip_planes"),
               std::string::npos);
 }
+
+TEST(Scene, ShadingKeys) {
+    TempDir d;
+    raw_volume(d);
+    const std::string vol = R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})";
+    EXPECT_TRUE(parse_scene(scene_with(vol, R"(, "render": {"shading": true})"), d.path(), "s")
+                    .settings.shading.enabled);
+    const Scene sc = parse_scene(scene_with(vol, R"(, "render": {"shading": {"ambient": 0.3, "shininess": 40,
+                   "lights": [{"direction": [1, 0, 0], "color": [1, 0.5, 0.5]}, {"direction": [0, 0, -1]}]}})"),
+                                 d.path(), "s");
+    EXPECT_TRUE(sc.settings.shading.enabled);
+    EXPECT_DOUBLE_EQ(sc.settings.shading.ambient, 0.3);
+    EXPECT_DOUBLE_EQ(sc.settings.shading.diffuse, 0.7);
+    EXPECT_DOUBLE_EQ(sc.settings.shading.shininess, 40);
+    ASSERT_EQ(sc.settings.shading.lights.size(), 2u);
+    EXPECT_DOUBLE_EQ(sc.settings.shading.lights[0].color[1], 0.5);
+    EXPECT_DOUBLE_EQ(sc.settings.shading.lights[1].color[2], 1.0);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"shading": "yes"})"), d.path()).find("shading"),
+              std::string::npos);
+    EXPECT_NE(
+        error_of(scene_with(vol, R"(, "render": {"shading": {"lights": [{"color": [1, 1, 1]}]}})"), d.path())
+            .find("direction"),
+        std::string::npos);
+    EXPECT_NE(
+        error_of(scene_with(vol, R"(, "render": {"shading": {"specular": -1}})"), d.path()).find("shading"),
+        std::string::npos);
+}

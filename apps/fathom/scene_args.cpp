@@ -64,6 +64,16 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
     if (a.jitter) s.jitter = true;
     if (a.no_skip_empty) s.skip_empty = false;
     if (a.no_simd) s.simd = false;
+    if (a.shade) s.shading.enabled = true;
+    if (!a.phong.empty()) {
+        const auto v = parse_numbers(a.phong, "--phong");
+        if (v.size() != 4) throw UsageError("--phong expects AMBIENT,DIFFUSE,SPECULAR,SHININESS");
+        s.shading.enabled = true;
+        s.shading.ambient = v[0];
+        s.shading.diffuse = v[1];
+        s.shading.specular = v[2];
+        s.shading.shininess = v[3];
+    }
     if (!a.crop.empty()) {
         const auto v = parse_numbers(a.crop, "--crop");
         if (v.size() != 6) throw UsageError("--crop expects X0,Y0,Z0,X1,Y1,Z1 (world coordinates)");
@@ -125,6 +135,12 @@ void SceneArgs::add_to(CLI::App* cmd) {
     this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
     cmd->add_flag("--no-skip-empty", this->no_skip_empty,
                   "Turn off exact empty-space skipping (same image; to measure what it buys)");
+    cmd->add_flag(
+        "--shade", this->shade,
+        "Gradient shading (Blinn-Phong, head light unless the scene sets lights; emission-absorption)");
+    cmd->add_option("--phong", this->phong,
+                    "Shading coefficients AMBIENT,DIFFUSE,SPECULAR,SHININESS (implies --shade; default "
+                    "0.1,0.7,0.2,10)");
     cmd->add_option("--crop", this->crop,
                     "Cropping box X0,Y0,Z0,X1,Y1,Z1 in world coordinates (replaces the scene's)");
     cmd->add_option("--clip-plane", this->clip_planes,

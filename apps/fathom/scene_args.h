@@ -13,7 +13,7 @@
 namespace fathom::cli {
 
 struct SceneArgs {
-    std::string scene, volume, tf, preset, orbit, background, crop;
+    std::string scene, volume, tf, preset, orbit, background, crop, phong;
     std::vector<std::string> clip_planes;
     int width = 0, height = 0, threads = 0;
     std::string model, integrator, order, sample_point, step_unit;
@@ -21,6 +21,7 @@ struct SceneArgs {
     bool jitter = false;
     bool no_skip_empty = false;
     bool no_simd = false;
+    bool shade = false;
     std::uint32_t jitter_seed = 0;
     CLI::Option* o_seed{};
     CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_termination{}, *o_threads{};

@@ -50,6 +50,24 @@ struct WorldBox {
     Vec3 min, max;
 };
 
+/// A directional light; `direction` points from the scene toward the light
+/// (world coordinates, any length > 0); `color` scales its contribution.
+struct Light {
+    Vec3 direction;
+    Rgb color{1, 1, 1};
+};
+
+/// Blinn–Phong local illumination of the source term (docs/shading.md):
+/// g' = g·(k_a + Σ k_d·|n·l|·L) + σ·Σ k_s·|n·h|^p·L, with n the normalised
+/// gradient of the scalar (two-sided) and h the half vector; opacity is not
+/// shaded. Defaults as VTK's volume property.
+struct Shading {
+    bool enabled = false;
+    double ambient = 0.1, diffuse = 0.7, specular = 0.2, shininess = 10.0;
+    /// Empty: one white head light (from the camera).
+    std::vector<Light> lights;
+};
+
 struct RenderSettings {
     int width = 512;
     int height = 512;
@@ -71,6 +89,7 @@ struct RenderSettings {
     /// Accuracy goal of the reference integrator (per channel, absolute for
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;
+    Shading shading;
     /// Cutting: rays keep only the part of the volume inside the cropping
     /// box and on the kept side of every clipping plane (at most 6); the
     /// uniform segment division applies to what is left (exact).

@@ -53,10 +53,11 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
                 MediumSample m{batch.sigma[l], {batch.color[0][l], batch.color[1][l], batch.color[2][l]}};
                 if (!medium.tf->associated())  // as ScalarMedium::classify
                     for (double& c : m.source) c *= m.sigma;
+                if constexpr (Medium::kShaded) medium.shade(grid.at(i), m);
                 return m;
             }
         }
-        return medium.at(grid.at(i));
+        return medium.at(grid.at(i));  // shaded media shade here
     };
     auto segment = [&](std::int64_t i) {
         MediumSample m = sample(i);

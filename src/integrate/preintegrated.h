@@ -24,6 +24,7 @@
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
 #include "render/empty_space.h"
+#include "render/shading.h"
 
 namespace fathom {
 namespace preint {
@@ -180,7 +181,21 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     };
     auto segment = [&](std::int64_t i) {
         const End f = end(i - 1), b = end(i);
-        if constexpr (Medium::kHasScalar) {
+        if constexpr (Medium::kShaded) {
+            // Shading with the gradient at the segment's midpoint, taken as
+            // constant over the segment (Lum, Wilson and Ma 2004): g' = g·D +
+            // σ·S integrates to D·E + S·∫σ·e^{−τ} = D·E + S·(1 − t), or
+            // D·E + S·τ without self-attenuation.
+            Segment seg = preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
+            if (seg.transmittance == 1.0 && seg.radiance == Rgb{0, 0, 0}) return seg;  // nothing to shade
+            const ShadeFactors sf =
+                medium.factors(span.at(span.t_near + (static_cast<double>(i) - 0.5) * delta));
+            const double t = seg.transmittance;
+            const double a = full ? 1.0 - t : (t > 0.0 ? -std::log(t) : 0.0);
+            for (int c = 0; c < 3; ++c)
+                seg.radiance[c] = seg.radiance[c] * sf.diffuse[c] + a * sf.specular[c];
+            return seg;
+        } else if constexpr (Medium::kHasScalar) {
             return preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
         } else {
             return preintegrate_grid<M>(f.sigma, f.color, b.sigma, b.color, delta, full);

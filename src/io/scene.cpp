@@ -212,7 +212,7 @@ int positive_int(const json& j, const std::string& where, const Ctx& cx) {
 void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
     only_keys(j,
               {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
-               "termination", "background", "jitter", "jitter_seed", "crop", "clip_planes"},
+               "termination", "background", "jitter", "jitter_seed", "crop", "clip_planes", "shading"},
               "'render'", cx);
     if (j.contains("width")) s.width = positive_int(j["width"], "render 'width'", cx);
     if (j.contains("height")) s.height = positive_int(j["height"], "render 'height'", cx);
@@ -248,6 +248,38 @@ void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
         } else {
             const auto rgb = numbers<3>(b, "render 'background'", cx);
             s.background = Rgb{rgb[0], rgb[1], rgb[2]};
+        }
+    }
+    if (j.contains("shading")) {
+        const json& sh = j["shading"];
+        if (sh.is_boolean()) {
+            s.shading.enabled = sh.get<bool>();
+        } else if (sh.is_object()) {
+            only_keys(sh, {"ambient", "diffuse", "specular", "shininess", "lights"}, "render 'shading'", cx);
+            s.shading.enabled = true;
+            if (sh.contains("ambient")) s.shading.ambient = number(sh["ambient"], "shading 'ambient'", cx);
+            if (sh.contains("diffuse")) s.shading.diffuse = number(sh["diffuse"], "shading 'diffuse'", cx);
+            if (sh.contains("specular"))
+                s.shading.specular = number(sh["specular"], "shading 'specular'", cx);
+            if (sh.contains("shininess"))
+                s.shading.shininess = number(sh["shininess"], "shading 'shininess'", cx);
+            if (sh.contains("lights")) {
+                const json& ls = sh["lights"];
+                if (!ls.is_array())
+                    cx.fail("shading 'lights' must be an array of {\"direction\": [...], \"color\": [...]}");
+                for (const json& l : ls) {
+                    if (!l.is_object() || !l.contains("direction")) cx.fail("each light needs a 'direction'");
+                    only_keys(l, {"direction", "color"}, "a light", cx);
+                    Light light{vec3(l["direction"], "light 'direction'", cx), {1, 1, 1}};
+                    if (l.contains("color")) {
+                        const auto c = numbers<3>(l["color"], "light 'color'", cx);
+                        light.color = {c[0], c[1], c[2]};
+                    }
+                    s.shading.lights.push_back(light);
+                }
+            }
+        } else {
+            cx.fail("render 'shading' must be true, false or an object");
         }
     }
     if (j.contains("crop")) {

@@ -15,6 +15,7 @@ namespace fathom {
 template <class T>
 struct ScalarMedium {
     static constexpr bool kHasScalar = true;
+    static constexpr bool kShaded = false;
     GridSampler<T> grid;
     const Classifier* tf = nullptr;
 
@@ -40,6 +41,7 @@ struct GridEndSample {
 template <class D, class C>
 struct GridMedium {
     static constexpr bool kHasScalar = false;
+    static constexpr bool kShaded = false;
     GridSampler<D> density;
     GridSampler<C> color;
 

@@ -16,6 +16,7 @@
 #include "integrate/riemann.h"
 #include "render/empty_space.h"
 #include "render/medium.h"
+#include "render/shading.h"
 
 namespace fathom {
 
@@ -32,6 +33,7 @@ struct Renderer::Impl {
     EmptySpace empty_space;
     simd::FlatFunction flat_sigma, flat_color;
     simd::BatchSource batch;  // batch.data == nullptr: no SIMD
+    ShadeSetup shade;
     Tracer tracer;
 
     /// The macrocells to skip, or nullptr when skipping is off or useless.
@@ -105,6 +107,18 @@ void check_lattice(const Volume& v, const std::string& what) {
         if (d < 2) throw Error(what, "every dimension must be at least 2 samples to interpolate");
 }
 
+/// The medium as one ray sees it: shaded media learn the ray's direction.
+template <class Medium>
+decltype(auto) for_ray(const Medium& med, const RaySpan& sp) {
+    if constexpr (Medium::kShaded) {
+        Medium m = med;
+        m.set_ray(sp);
+        return m;
+    } else {
+        return (med);
+    }
+}
+
 template <Model M, class Medium>
 Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     const RenderSettings& s = im.s;
@@ -115,23 +129,24 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     switch (s.integrator) {
         case IntegratorKind::riemann:
             return [med, s, h, bg, acc](const RaySpan& sp) {
-                return integrate_riemann<M>(med, sp, s, h, bg, acc);
+                return integrate_riemann<M>(for_ray(med, sp), sp, s, h, bg, acc);
             };
         case IntegratorKind::alpha:
             return [med, s, h, bg, acc](const RaySpan& sp) {
-                return integrate_alpha<M>(med, sp, s, h, bg, acc);
+                return integrate_alpha<M>(for_ray(med, sp), sp, s, h, bg, acc);
             };
         case IntegratorKind::reference: {
             const std::vector<double>* breaks = &im.tf.breakpoints();
             return [med, s, bg, breaks](const RaySpan& sp) {
-                return ReferenceIntegrator<M, Medium>(med, sp, s.reference_tolerance, breaks).run(bg);
+                return ReferenceIntegrator<M, Medium>(for_ray(med, sp), sp, s.reference_tolerance, breaks)
+                    .run(bg);
             };
         }
         case IntegratorKind::preintegrated:
         case IntegratorKind::preintegrated_simple: {
             const bool full = s.integrator == IntegratorKind::preintegrated;
             return [med, s, h, bg, full, es](const RaySpan& sp) {
-                return integrate_preintegrated<M>(med, sp, s, h, bg, full, es);
+                return integrate_preintegrated<M>(for_ray(med, sp), sp, s, h, bg, full, es);
             };
         }
     }
@@ -220,8 +235,23 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
         impl_->batch = {volume.bytes(),   volume.dtype(),     volume.dims()[0],  volume.dims()[1],
                         volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color};
     }
+    const Shading& sh = impl_->s.shading;
+    const bool shaded = sh.enabled && impl_->s.model == Model::emission_absorption;
+    if (shaded) {
+        impl_->shade = {sh.ambient,   sh.diffuse, sh.specular, sh.shininess, {}, impl_->world_to_index,
+                        volume.axes()};
+        for (Light l : sh.lights) {
+            l.direction = l.direction * (1.0 / length(l.direction));
+            impl_->shade.lights.push_back(l);
+        }
+    }
     impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
         ScalarMedium<T> med{GridSampler<T>(volume), &impl_->tf};
+        if (shaded) {
+            ShadedScalarMedium<T> sm{med};
+            sm.setup = &impl_->shade;
+            return integrator_tracer<Model::emission_absorption>(sm, *impl_);
+        }
         return make_tracer(med, *impl_);
     });
 }
@@ -237,6 +267,10 @@ Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings se
     auto is_float = [](DType t) { return t == DType::f32 || t == DType::f64; };
     if (!is_float(density.dtype()) || !is_float(color.dtype()))
         throw Error("pre-classified grids", "density and color must be float32 or float64");
+    if (settings.shading.enabled)
+        throw Error(
+            "shading",
+            "needs a scalar volume (its gradient gives the normals); pre-classified grids are not shaded");
     setup(*impl_, density);
     if (impl_->s.skip_empty)
         impl_->empty_space =

@@ -108,6 +108,17 @@ void RenderSettings::validate() const {
                  !(crop->min.y < crop->max.y) || !(crop->min.z < crop->max.z)))
         throw Error(subject, "the cropping box needs finite corners with min < max on every axis");
     if (clip_planes.size() > 6) throw Error(subject, "at most 6 clipping planes");
+    for (double k : {shading.ambient, shading.diffuse, shading.specular, shading.shininess})
+        if (!std::isfinite(k) || k < 0)
+            throw Error(
+                subject,
+                "shading coefficients (ambient, diffuse, specular, shininess) must be finite and >= 0");
+    for (const auto& l : shading.lights) {
+        if (!finite(l.direction) || !(length(l.direction) > 0))
+            throw Error(subject, "a light needs a finite, non-zero direction");
+        for (double c : l.color)
+            if (!std::isfinite(c) || c < 0) throw Error(subject, "a light's color must be finite and >= 0");
+    }
     for (const auto& p : clip_planes)
         if (!finite(p.point) || !finite(p.normal) || !(length(p.normal) > 0))
             throw Error(subject, "a clipping plane needs a finite point and a finite, non-zero normal");
