@@ -264,3 +264,18 @@ TEST(Cli, ShadeAndPhongFlags) {
     EXPECT_EQ(fathom_cli("render " + scene + " --phong 1,2 -o x.pfm", d).status, 2);
     EXPECT_EQ(fathom_cli("render " + scene + " --phong 0.1,0.7,-1,10 -o x.pfm", d).status, 2);
 }
+
+TEST(Cli, IsoFlagSelectsTheIsosurfaceModel) {
+    TempDir d;
+    make_scene(d);
+    const std::string scene = (d / "scene.json").string();
+    CliRun r = fathom_cli("render " + scene + " --iso 100,1,0.9,0.8 -o " + (d / "iso.pfm").string(), d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const fathom::Image img = fathom::read_pfm(d / "iso.pfm");
+    int opaque = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) opaque += img.pixel(x, y)[3] == 1.0f;
+    EXPECT_GT(opaque, 10);
+    EXPECT_EQ(fathom_cli("render " + scene + " --iso 1,2 -o x.pfm", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " --model isosurface -o x.pfm", d).status, 2);
+}

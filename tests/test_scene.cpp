@@ -219,3 +219,22 @@ TEST(Scene, ShadingKeys) {
         error_of(scene_with(vol, R"(, "render": {"shading": {"specular": -1}})"), d.path()).find("shading"),
         std::string::npos);
 }
+
+TEST(Scene, IsosurfaceKeys) {
+    TempDir d;
+    raw_volume(d);
+    const std::string vol = R"({"path": "v.raw", "dims": [4, 3, 2], "dtype": "uint8"})";
+    const Scene sc = parse_scene(
+        scene_with(vol,
+                   R"(, "render": {"model": "isosurface", "isosurfaces": [{"value": 3, "color": [1, 0, 0],
+                   "opacity": 0.5}, {"value": 7}]})"),
+        d.path(), "s");
+    ASSERT_EQ(sc.settings.isosurfaces.size(), 2u);
+    EXPECT_DOUBLE_EQ(sc.settings.isosurfaces[0].opacity, 0.5);
+    EXPECT_DOUBLE_EQ(sc.settings.isosurfaces[1].value, 7);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"model": "isosurface"})"), d.path()).find("iso"),
+              std::string::npos);
+    EXPECT_NE(error_of(scene_with(vol, R"(, "render": {"isosurfaces": [{"color": [1, 1, 1]}]})"), d.path())
+                  .find("value"),
+              std::string::npos);
+}

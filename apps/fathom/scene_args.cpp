@@ -65,6 +65,20 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
     if (a.no_skip_empty) s.skip_empty = false;
     if (a.no_simd) s.simd = false;
     if (a.shade) s.shading.enabled = true;
+    if (!a.isos.empty()) {
+        s.isosurfaces.clear();
+        for (const auto& text : a.isos) {
+            const auto v = parse_numbers(text, "--iso");
+            if (v.size() != 1 && v.size() != 4 && v.size() != 5)
+                throw UsageError("--iso expects VALUE[,R,G,B[,OPACITY]]");
+            IsoSurface iso;
+            iso.value = v[0];
+            if (v.size() >= 4) iso.color = {v[1], v[2], v[3]};
+            if (v.size() == 5) iso.opacity = v[4];
+            s.isosurfaces.push_back(iso);
+        }
+        if (a.model.empty()) s.model = Model::isosurface;
+    }
     if (!a.phong.empty()) {
         const auto v = parse_numbers(a.phong, "--phong");
         if (v.size() != 4) throw UsageError("--phong expects AMBIENT,DIFFUSE,SPECULAR,SHININESS");
@@ -116,7 +130,8 @@ void SceneArgs::add_to(CLI::App* cmd) {
         "Orbit camera AZ,EL[,DIST] in degrees (distance in half box diagonals, default 3), with --volume");
     this->o_width = cmd->add_option("--width", this->width, "Image width in pixels (default 512)");
     this->o_height = cmd->add_option("--height", this->height, "Image height in pixels (default 512)");
-    cmd->add_option("--model", this->model, "emission-absorption (default), absorption, emission or mip");
+    cmd->add_option("--model", this->model,
+                    "emission-absorption (default), absorption, emission, mip, minip, average or isosurface");
     cmd->add_option("--integrator", this->integrator,
                     "preintegrated (default), preintegrated-simple, alpha, riemann or reference");
     this->o_step = cmd->add_option("--step", this->step,
@@ -135,6 +150,9 @@ void SceneArgs::add_to(CLI::App* cmd) {
     this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
     cmd->add_flag("--no-skip-empty", this->no_skip_empty,
                   "Turn off exact empty-space skipping (same image; to measure what it buys)");
+    cmd->add_option("--iso", this->isos,
+                    "Isosurface VALUE[,R,G,B[,OPACITY]] in the volume's units; repeat for several; selects "
+                    "--model isosurface unless --model is given");
     cmd->add_flag(
         "--shade", this->shade,
         "Gradient shading (Blinn-Phong, head light unless the scene sets lights; emission-absorption)");

@@ -14,7 +14,7 @@ namespace fathom::cli {
 
 struct SceneArgs {
     std::string scene, volume, tf, preset, orbit, background, crop, phong;
-    std::vector<std::string> clip_planes;
+    std::vector<std::string> clip_planes, isos;
     int width = 0, height = 0, threads = 0;
     std::string model, integrator, order, sample_point, step_unit;
     double step = 0, termination = 0;

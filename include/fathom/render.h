@@ -3,6 +3,7 @@
 // single-ray tracing for tools and tests.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -19,9 +20,10 @@
 
 namespace fathom {
 
-/// The optical models of SPEC §1, and projection modes over the scalar
-/// (mip, minip, average), which need a scalar volume.
-enum class Model { emission_absorption, absorption, emission, mip, minip, average };
+/// The optical models of SPEC §1, projection modes over the scalar (mip,
+/// minip, average) and isosurfaces (the first crossings of iso-values,
+/// shaded), which need a scalar volume.
+enum class Model { emission_absorption, absorption, emission, mip, minip, average, isosurface };
 enum class IntegratorKind { riemann, alpha, reference, preintegrated, preintegrated_simple };
 enum class SamplePoint { near, mid };
 enum class Order { front_to_back, back_to_front };
@@ -68,6 +70,14 @@ struct Shading {
     std::vector<Light> lights;
 };
 
+/// One surface of the isosurface model: where the scalar crosses `value`,
+/// lit with the shading coefficients, composited with `opacity`.
+struct IsoSurface {
+    double value = 0;
+    Rgb color{1, 1, 1};
+    double opacity = 1;
+};
+
 struct RenderSettings {
     int width = 512;
     int height = 512;
@@ -90,6 +100,8 @@ struct RenderSettings {
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;
     Shading shading;
+    /// Iso-values of the isosurface model (at most 16).
+    std::vector<IsoSurface> isosurfaces;
     /// Cutting: rays keep only the part of the volume inside the cropping
     /// box and on the kept side of every clipping plane (at most 6); the
     /// uniform segment division applies to what is left (exact).
@@ -111,6 +123,9 @@ struct RenderSettings {
 struct RayResult {
     Rgb radiance{0, 0, 0};
     double alpha = 0.0;
+    /// The isosurface model: the world distance along the ray to the first
+    /// surface hit (infinite when none).
+    double first_hit = INFINITY;
 };
 
 /// Called from the rendering threads with (tiles done, tiles in all).

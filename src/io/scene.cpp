@@ -212,7 +212,8 @@ int positive_int(const json& j, const std::string& where, const Ctx& cx) {
 void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
     only_keys(j,
               {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
-               "termination", "background", "jitter", "jitter_seed", "crop", "clip_planes", "shading"},
+               "termination", "background", "jitter", "jitter_seed", "crop", "clip_planes", "shading",
+               "isosurfaces"},
               "'render'", cx);
     if (j.contains("width")) s.width = positive_int(j["width"], "render 'width'", cx);
     if (j.contains("height")) s.height = positive_int(j["height"], "render 'height'", cx);
@@ -280,6 +281,26 @@ void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
             }
         } else {
             cx.fail("render 'shading' must be true, false or an object");
+        }
+    }
+    if (j.contains("isosurfaces")) {
+        const json& a = j["isosurfaces"];
+        if (!a.is_array())
+            cx.fail(
+                "render 'isosurfaces' must be an array of {\"value\": v, \"color\": [...], \"opacity\": a}");
+        s.isosurfaces.clear();
+        for (const json& e : a) {
+            if (!e.is_object() || !e.contains("value"))
+                cx.fail("each of render 'isosurfaces' needs a 'value'");
+            only_keys(e, {"value", "color", "opacity"}, "an isosurface", cx);
+            IsoSurface iso;
+            iso.value = number(e["value"], "isosurface 'value'", cx);
+            if (e.contains("color")) {
+                const auto c = numbers<3>(e["color"], "isosurface 'color'", cx);
+                iso.color = {c[0], c[1], c[2]};
+            }
+            if (e.contains("opacity")) iso.opacity = number(e["opacity"], "isosurface 'opacity'", cx);
+            s.isosurfaces.push_back(iso);
         }
     }
     if (j.contains("crop")) {

@@ -11,6 +11,7 @@
 #include "fathom/render.h"
 
 #include "integrate/alpha.h"
+#include "integrate/isosurface.h"
 #include "integrate/preintegrated.h"
 #include "integrate/reference.h"
 #include "integrate/riemann.h"
@@ -194,6 +195,17 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
         case Model::average:
             if constexpr (Medium::kHasScalar) return projection_tracer<Model::average>(med, im);
             break;
+        case Model::isosurface:
+            if constexpr (Medium::kHasScalar) {
+                const RenderSettings& s = im.s;
+                const double h = im.h;
+                const Rgb bg = im.bg;
+                const ShadeSetup* shade = &im.shade;
+                return [med, s, h, bg, shade](const RaySpan& sp) {
+                    return trace_isosurfaces(med, sp, s, h, bg, *shade);
+                };
+            }
+            break;
     }
     throw Error("model '" + std::string(to_string(im.s.model)) + "'",
                 "needs a scalar volume with a transfer function (pre-classified grids are refused)");
@@ -237,7 +249,7 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
     }
     const Shading& sh = impl_->s.shading;
     const bool shaded = sh.enabled && impl_->s.model == Model::emission_absorption;
-    if (shaded) {
+    if (shaded || impl_->s.model == Model::isosurface) {  // isosurfaces are always lit
         impl_->shade = {sh.ambient,   sh.diffuse, sh.specular, sh.shininess, {}, impl_->world_to_index,
                         volume.axes()};
         for (Light l : sh.lights) {

@@ -28,13 +28,14 @@ std::string_view enum_name(E e, const std::array<std::pair<std::string_view, E>,
     return "?";
 }
 
-constexpr std::array<std::pair<std::string_view, Model>, 6> kModels{{
+constexpr std::array<std::pair<std::string_view, Model>, 7> kModels{{
     {"emission-absorption", Model::emission_absorption},
     {"absorption", Model::absorption},
     {"emission", Model::emission},
     {"mip", Model::mip},
     {"minip", Model::minip},
     {"average", Model::average},
+    {"isosurface", Model::isosurface},
 }};
 constexpr std::array<std::pair<std::string_view, IntegratorKind>, 5> kIntegrators{{
     {"riemann", IntegratorKind::riemann},
@@ -108,6 +109,17 @@ void RenderSettings::validate() const {
                  !(crop->min.y < crop->max.y) || !(crop->min.z < crop->max.z)))
         throw Error(subject, "the cropping box needs finite corners with min < max on every axis");
     if (clip_planes.size() > 6) throw Error(subject, "at most 6 clipping planes");
+    if (model == Model::isosurface && isosurfaces.empty())
+        throw Error(subject, "the isosurface model needs at least one iso-value ('isosurfaces', --iso)");
+    if (isosurfaces.size() > 16) throw Error(subject, "at most 16 iso-values");
+    for (const auto& iso : isosurfaces) {
+        if (!std::isfinite(iso.value)) throw Error(subject, "an iso-value must be finite");
+        if (!std::isfinite(iso.opacity) || iso.opacity < 0 || iso.opacity > 1)
+            throw Error(subject, "an isosurface's opacity must be in [0, 1]");
+        for (double c : iso.color)
+            if (!std::isfinite(c) || c < 0)
+                throw Error(subject, "an isosurface's color must be finite and >= 0");
+    }
     for (double k : {shading.ambient, shading.diffuse, shading.specular, shading.shininess})
         if (!std::isfinite(k) || k < 0)
             throw Error(
