@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fathom/io.h"
+#include "fathom/scene.h"
 
 #include "test_util.h"
 
@@ -278,4 +279,43 @@ TEST(Cli, IsoFlagSelectsTheIsosurfaceModel) {
     EXPECT_GT(opaque, 10);
     EXPECT_EQ(fathom_cli("render " + scene + " --iso 1,2 -o x.pfm", d).status, 2);
     EXPECT_EQ(fathom_cli("render " + scene + " --model isosurface -o x.pfm", d).status, 2);
+}
+
+TEST(Cli, OrbitFramesWriteATurntableAndItsTransforms) {
+    TempDir d;
+    make_scene(d);
+    const std::string scene = (d / "scene.json").string();
+    const CliRun r = fathom_cli("render " + scene + " --orbit-frames 3 --transforms " +
+                                    (d / "transforms.json").string() + " -o " + (d / "f.pfm").string(),
+                                d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream in(d / "transforms.json");
+    const auto j = nlohmann::json::parse(in);
+    ASSERT_EQ(j["frames"].size(), 3u);
+    const fathom::Scene sc = fathom::load_scene(d / "scene.json");
+    // camera_angle_x is the horizontal field of view of SPEC §9
+    const double ax = j["camera_angle_x"].get<double>();
+    const double fov_y = 2 * std::atan(std::tan(ax / 2) * sc.settings.height / sc.settings.width);
+    EXPECT_NEAR(fov_y * 180 / std::numbers::pi, sc.camera.fov_y_deg, 1e-9);
+    for (int f = 0; f < 3; ++f) {
+        const auto& fr = j["frames"][static_cast<std::size_t>(f)];
+        EXPECT_EQ(fr["file_path"], "f_00" + std::to_string(f) + ".pfm");
+        std::array<double, 16> m{};
+        for (int row = 0; row < 4; ++row)
+            for (int c = 0; c < 4; ++c)
+                m[static_cast<std::size_t>(4 * row + c)] =
+                    fr["transform_matrix"][static_cast<std::size_t>(row)][static_cast<std::size_t>(c)];
+        fathom::Camera cam = fathom::Camera::from_matrix(m);
+        cam.fov_y_deg = fov_y * 180 / std::numbers::pi;
+        // The frame on disk is what the library renders from the written camera.
+        const fathom::Image want = sc.renderer().render(cam);
+        const fathom::Image got = fathom::read_pfm(d / ("f_00" + std::to_string(f) + ".pfm"));
+        ASSERT_EQ(got.rgba.size(), want.rgba.size());
+        for (std::size_t i = 0; i < got.rgba.size(); ++i)  // PFM holds RGB only
+            if (i % 4 != 3) ASSERT_NEAR(got.rgba[i], want.rgba[i], 1e-5) << f << " " << i;
+    }
+    // frames differ (the camera turned)
+    EXPECT_NE(fathom::read_pfm(d / "f_000.pfm").rgba, fathom::read_pfm(d / "f_001.pfm").rgba);
+    EXPECT_EQ(fathom_cli("render " + scene + " --transforms t.json -o x.png", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " --orbit-frames -2 -o x.png", d).status, 2);
 }

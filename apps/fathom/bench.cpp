@@ -51,19 +51,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The camera of frame f: the scene's camera rotated about the box centre's
-// vertical (+z) axis by f·turn degrees.
-Camera frame_camera(const Camera& c, const Vec3& center, double degrees) {
-    const double a = degrees * 3.14159265358979323846 / 180.0, ca = std::cos(a), sa = std::sin(a);
-    auto rot = [&](const Vec3& v) { return Vec3{ca * v.x - sa * v.y, sa * v.x + ca * v.y, v.z}; };
-    Camera r = c;
-    r.position = center + rot(c.position - center);
-    r.forward = rot(c.forward);
-    r.right = rot(c.right);
-    r.up = rot(c.up);
-    return r;
-}
-
 void run_bench(const BenchArgs& a) {
     if (a.frames < 1) throw UsageError("--frames must be at least 1");
     const auto t_load = std::chrono::steady_clock::now();
@@ -76,7 +63,7 @@ void run_bench(const BenchArgs& a) {
     std::vector<double> times;
     std::uint64_t segments = 0;
     for (int f = 0; f < a.frames; ++f) {
-        const Camera cam = frame_camera(sc.camera, center, f * a.turn);
+        const Camera cam = sc.camera.turned(center, f * a.turn);
         segments += r.count_segments(cam);
         const auto t0 = std::chrono::steady_clock::now();
         const Image img = r.render(cam);

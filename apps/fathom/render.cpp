@@ -8,6 +8,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <mutex>
+#include <numbers>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "fathom/error.h"
 #include "fathom/io.h"
@@ -25,7 +29,35 @@ struct RenderArgs {
     SceneArgs scene;
     std::string output;
     bool quiet = false;
+    int orbit_frames = 0;
+    std::string transforms;
 };
+
+/// OUT.ext → OUT_007.ext for frame 7.
+fs::path frame_path(const fs::path& out, int f) {
+    char num[16];
+    std::snprintf(num, sizeof num, "_%03d", f);
+    return out.parent_path() / (out.stem().string() + num + out.extension().string());
+}
+
+/// The NeRF transforms.json of SPEC §9 for the frames written.
+void write_transforms(const fs::path& json_path, const Scene& scene, const std::vector<fs::path>& files,
+                      const std::vector<Camera>& cams) {
+    const RenderSettings& s = scene.settings;
+    const double fov_y = scene.camera.fov_y_deg * std::numbers::pi / 180.0;
+    const double angle_x = 2.0 * std::atan(std::tan(fov_y / 2.0) * s.width / s.height);
+    nlohmann::json frames = nlohmann::json::array();
+    const fs::path base = fs::absolute(json_path).parent_path();
+    for (std::size_t i = 0; i < files.size(); ++i) {
+        const auto m = cams[i].to_matrix();
+        nlohmann::json rows = nlohmann::json::array();
+        for (int r = 0; r < 4; ++r) rows.push_back({m[4 * r], m[4 * r + 1], m[4 * r + 2], m[4 * r + 3]});
+        frames.push_back({{"file_path", fs::relative(fs::absolute(files[i]), base).generic_string()},
+                          {"transform_matrix", rows}});
+    }
+    const nlohmann::json j{{"camera_angle_x", angle_x}, {"frames", frames}};
+    write_text_file(json_path, j.dump(2) + "\n");
+}
 
 // A progress line on stderr for renders that take over a second, only on a terminal.
 class Progress {
@@ -62,11 +94,33 @@ void run_render(const RenderArgs& a) {
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
     if (ext != ".pfm" && ext != ".png" && ext != ".exr")
         throw UsageError("-o " + a.output + ": the output must end in .pfm, .png or .exr");
+    if (a.orbit_frames < 0 || a.orbit_frames > 100000)
+        throw UsageError("--orbit-frames must be in 0..100000");
+    if (!a.transforms.empty() && a.orbit_frames == 0)
+        throw UsageError("--transforms goes with --orbit-frames");
     const Scene scene = a.scene.load("render");
+    if (!a.transforms.empty() && scene.camera.projection != Projection::perspective)
+        throw UsageError("--transforms needs a perspective camera (NeRF sets have a field of view)");
     const Renderer renderer = scene.renderer();
-    Progress progress(!a.quiet);
-    const Image image = renderer.render(scene.camera, [&](int d, int t) { progress(d, t); });
-    write_image(a.output, image, scene.settings.transparent);
+    if (a.orbit_frames == 0) {
+        Progress progress(!a.quiet);
+        const Image image = renderer.render(scene.camera, [&](int d, int t) { progress(d, t); });
+        write_image(a.output, image, scene.settings.transparent);
+        return;
+    }
+    // A turntable: frame f turned f·360/N degrees about the box centre's vertical axis.
+    const Vec3 center = volume_bounds(scene.volume).center;
+    std::vector<fs::path> files;
+    std::vector<Camera> cams;
+    for (int f = 0; f < a.orbit_frames; ++f) {
+        const Camera cam = scene.camera.turned(center, 360.0 * f / a.orbit_frames);
+        Progress progress(!a.quiet);
+        const Image image = renderer.render(cam, [&](int d, int t) { progress(d, t); });
+        files.push_back(frame_path(a.output, f));
+        cams.push_back(cam);
+        write_image(files.back(), image, scene.settings.transparent);
+    }
+    if (!a.transforms.empty()) write_transforms(a.transforms, scene, files, cams);
 }
 
 }  // namespace
@@ -79,6 +133,11 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("-o,--output", a->output, "Output image: .pfm (linear float), .png (sRGB 8-bit) or .exr")
         ->required();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress indicator");
+    cmd->add_option(
+        "--orbit-frames", a->orbit_frames,
+        "Render N frames turning 360/N degrees each about the volume's vertical axis: OUT_000.ext ...");
+    cmd->add_option("--transforms", a->transforms,
+                    "With --orbit-frames: also write the frames' cameras as a NeRF transforms.json");
     cmd->callback([a] { run_render(*a); });
 }
 

@@ -37,6 +37,13 @@ public:
     static Camera orbit(double azimuth_deg, double elevation_deg, double distance, const Vec3& center,
                         double radius);
 
+    /// This camera turned by `degrees` about the vertical (+z) axis through
+    /// `center` (turntables, benchmark frames).
+    [[nodiscard]] Camera turned(const Vec3& center, double degrees) const;
+    /// The 4×4 row-major camera-to-world matrix (from_matrix's inverse:
+    /// columns right, up, −forward, position).
+    [[nodiscard]] std::array<double, 16> to_matrix() const;
+
     /// The ray through the centre of pixel (px, py).
     [[nodiscard]] Ray generate(int px, int py, int width, int height_px) const;
 };

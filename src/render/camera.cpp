@@ -50,6 +50,22 @@ Camera Camera::orbit(double azimuth_deg, double elevation_deg, double distance, 
     return look_at(center + dir * (distance * radius), center, up);
 }
 
+Camera Camera::turned(const Vec3& center, double degrees) const {
+    const double a = degrees * std::numbers::pi / 180.0, ca = std::cos(a), sa = std::sin(a);
+    auto rot = [&](const Vec3& v) { return Vec3{ca * v.x - sa * v.y, sa * v.x + ca * v.y, v.z}; };
+    Camera r = *this;
+    r.position = center + rot(position - center);
+    r.forward = rot(forward);
+    r.right = rot(right);
+    r.up = rot(up);
+    return r;
+}
+
+std::array<double, 16> Camera::to_matrix() const {
+    return {right.x, up.x, -forward.x, position.x, right.y, up.y, -forward.y, position.y,
+            right.z, up.z, -forward.z, position.z, 0.0,     0.0,  0.0,        1.0};
+}
+
 Ray Camera::generate(int px, int py, int width, int height_px) const {
     const double aspect = static_cast<double>(width) / height_px;
     const double x = (2.0 * (px + 0.5) / width - 1.0) * aspect;
