@@ -312,10 +312,39 @@ TEST(Cli, OrbitFramesWriteATurntableAndItsTransforms) {
         const fathom::Image got = fathom::read_pfm(d / ("f_00" + std::to_string(f) + ".pfm"));
         ASSERT_EQ(got.rgba.size(), want.rgba.size());
         for (std::size_t i = 0; i < got.rgba.size(); ++i)  // PFM holds RGB only
-            if (i % 4 != 3) ASSERT_NEAR(got.rgba[i], want.rgba[i], 1e-5) << f << " " << i;
+            if (i % 4 != 3) {
+                ASSERT_NEAR(got.rgba[i], want.rgba[i], 1e-5) << f << " " << i;
+            }
     }
     // frames differ (the camera turned)
     EXPECT_NE(fathom::read_pfm(d / "f_000.pfm").rgba, fathom::read_pfm(d / "f_001.pfm").rgba);
     EXPECT_EQ(fathom_cli("render " + scene + " --transforms t.json -o x.png", d).status, 2);
     EXPECT_EQ(fathom_cli("render " + scene + " --orbit-frames -2 -o x.png", d).status, 2);
+}
+
+TEST(Cli, DepthOutputs) {
+    TempDir d;
+    make_scene(d);
+    const std::string scene = (d / "scene.json").string();
+    const CliRun r =
+        fathom_cli("render " + scene + " -o " + (d / "c.png").string() + " --depth-out " +
+                       (d / "depth.pfm").string() + " --first-hit-out " + (d / "hit.exr").string(),
+                   d);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const fathom::Image depth = fathom::read_pfm(d / "depth.pfm");
+    const fathom::Image hit = fathom::read_exr(d / "hit.exr");
+    int finite = 0, misses = 0;
+    for (int y = 0; y < depth.height; ++y)
+        for (int x = 0; x < depth.width; ++x) {
+            const float dz = depth.pixel(x, y)[0], h = hit.pixel(x, y)[0];
+            if (std::isfinite(dz)) {
+                ++finite;
+                EXPECT_LE(h, dz + 1e-3f);
+            } else {
+                ++misses;
+            }
+        }
+    EXPECT_GT(finite, 100);
+    EXPECT_GT(misses, 0);
+    EXPECT_EQ(fathom_cli("render " + scene + " -o x.png --depth-out d.png", d).status, 2);
 }

@@ -31,7 +31,25 @@ struct RenderArgs {
     bool quiet = false;
     int orbit_frames = 0;
     std::string transforms;
+    std::string depth_out, first_hit_out;
 };
+
+/// One float per pixel as a gray image (the value in R, G and B).
+Image gray(const Image& like, const std::vector<float>& v) {
+    Image g(like.width, like.height);
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        for (int c = 0; c < 3; ++c) g.rgba[4 * i + static_cast<std::size_t>(c)] = v[i];
+        g.rgba[4 * i + 3] = 1.0f;
+    }
+    return g;
+}
+
+void check_float_output(const std::string& flag, const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (ext != ".pfm" && ext != ".exr")
+        throw UsageError(flag + " " + path + ": depths need a float image: .pfm or .exr");
+}
 
 /// OUT.ext → OUT_007.ext for frame 7.
 fs::path frame_path(const fs::path& out, int f) {
@@ -98,7 +116,12 @@ void run_render(const RenderArgs& a) {
         throw UsageError("--orbit-frames must be in 0..100000");
     if (!a.transforms.empty() && a.orbit_frames == 0)
         throw UsageError("--transforms goes with --orbit-frames");
-    const Scene scene = a.scene.load("render");
+    if (!a.depth_out.empty()) check_float_output("--depth-out", a.depth_out);
+    if (!a.first_hit_out.empty()) check_float_output("--first-hit-out", a.first_hit_out);
+    if ((!a.depth_out.empty() || !a.first_hit_out.empty()) && a.orbit_frames > 0)
+        throw UsageError("--depth-out and --first-hit-out go with single images, not --orbit-frames");
+    Scene scene = a.scene.load("render");
+    scene.settings.depth_outputs = !a.depth_out.empty() || !a.first_hit_out.empty();
     if (!a.transforms.empty() && scene.camera.projection != Projection::perspective)
         throw UsageError("--transforms needs a perspective camera (NeRF sets have a field of view)");
     const Renderer renderer = scene.renderer();
@@ -106,6 +129,8 @@ void run_render(const RenderArgs& a) {
         Progress progress(!a.quiet);
         const Image image = renderer.render(scene.camera, [&](int d, int t) { progress(d, t); });
         write_image(a.output, image, scene.settings.transparent);
+        if (!a.depth_out.empty()) write_image(a.depth_out, gray(image, image.depth));
+        if (!a.first_hit_out.empty()) write_image(a.first_hit_out, gray(image, image.first_hit));
         return;
     }
     // A turntable: frame f turned f·360/N degrees about the box centre's vertical axis.
@@ -133,6 +158,12 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("-o,--output", a->output, "Output image: .pfm (linear float), .png (sRGB 8-bit) or .exr")
         ->required();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress indicator");
+    cmd->add_option(
+        "--depth-out", a->depth_out,
+        "Also write the expected termination depth per pixel (world units; .pfm or .exr; inf = none)");
+    cmd->add_option(
+        "--first-hit-out", a->first_hit_out,
+        "Also write the first-hit depth per pixel (first sample with opacity, or the first isosurface)");
     cmd->add_option(
         "--orbit-frames", a->orbit_frames,
         "Render N frames turning 360/N degrees each about the volume's vertical axis: OUT_000.ext ...");

@@ -11,6 +11,10 @@ struct Image {
     int width = 0;
     int height = 0;
     std::vector<float> rgba;  // 4 floats per pixel, row-major, row 0 at the top
+    /// Depth outputs, one float per pixel, when rendered with depth_outputs:
+    /// expected termination depth and first-hit depth (world units along
+    /// the ray; +inf where nothing is hit).
+    std::vector<float> depth, first_hit;
 
     Image() = default;
     Image(int w, int h)

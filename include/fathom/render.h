@@ -100,6 +100,9 @@ struct RenderSettings {
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;
     Shading shading;
+    /// Also compute RayResult::depth and first_hit (Renderer::render then
+    /// fills Image::depth and Image::first_hit).
+    bool depth_outputs = false;
     /// Iso-values of the isosurface model (at most 16).
     std::vector<IsoSurface> isosurfaces;
     /// Cutting: rays keep only the part of the volume inside the cropping
@@ -123,8 +126,11 @@ struct RenderSettings {
 struct RayResult {
     Rgb radiance{0, 0, 0};
     double alpha = 0.0;
-    /// The isosurface model: the world distance along the ray to the first
-    /// surface hit (infinite when none).
+    /// Depth outputs (RenderSettings::depth_outputs; world distance along
+    /// the ray, infinite where nothing is hit): the expected termination
+    /// depth Σ T·α·t / (1 − T), and the first hit (the first segment with
+    /// α > 0; the isosurface model: the first surface, always set).
+    double depth = INFINITY;
     double first_hit = INFINITY;
 };
 

@@ -38,7 +38,7 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         std::size_t k;
     };
     RayResult r;
-    double T = 1.0;
+    double T = 1.0, weighted = 0.0;  // Σ T·a·t for the expected depth
     double ta = sp.t_near, fa = f(ta);
     for (std::int64_t j = 1; j <= n; ++j) {
         const double tb = j == n ? sp.t_far : sp.t_near + static_cast<double>(j) * delta;
@@ -66,10 +66,12 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
                 shade_factors(shade, world_gradient(med.grid, p, shade.world_to_index), view);
             for (int c = 0; c < 3; ++c)
                 r.radiance[c] += T * iso.opacity * (iso.color[c] * sf.diffuse[c] + sf.specular[c]);
+            weighted += T * iso.opacity * hits[i].t;
             T *= 1.0 - iso.opacity;
             r.first_hit = std::min(r.first_hit, hits[i].t);
             if (T < s.termination) {
                 r.alpha = 1.0 - T;
+                r.depth = weighted / r.alpha;
                 return r;
             }
         }
@@ -78,6 +80,7 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
     }
     for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
     r.alpha = 1.0 - T;
+    if (r.alpha > 0.0) r.depth = weighted / r.alpha;
     return r;
 }
 

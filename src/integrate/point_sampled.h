@@ -64,17 +64,22 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
         apply_model<M>(m.sigma, m.source);
         return rule(m, delta);
     };
+    DepthTrack depth{span.t_near, delta};
+    DepthTrack* track = s.depth_outputs ? &depth : nullptr;
     const EmptySpace* es = acc.es;
-    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
+    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
     // Samples in an empty macrocell give (1, 0): skip each run of them;
     // evaluate each run in a non-empty one without further lookups.
     const RunFinder runs(*es, grid);
-    return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) {
-        const auto run = runs.run(i, dir, dir > 0 ? n : 1);
-        const std::int64_t count = dir * (run.last - i) + 1;
-        run_end = run.last;
-        return run.empty ? count : -count;
-    });
+    return composite(
+        n, s.order, s.termination, bg, segment,
+        [&](std::int64_t i, int dir) {
+            const auto run = runs.run(i, dir, dir > 0 ? n : 1);
+            const std::int64_t count = dir * (run.last - i) + 1;
+            run_end = run.last;
+            return run.empty ? count : -count;
+        },
+        track);
 }
 
 }  // namespace fathom

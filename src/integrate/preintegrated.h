@@ -201,20 +201,25 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             return preintegrate_grid<M>(f.sigma, f.color, b.sigma, b.color, delta, full);
         }
     };
-    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment);
+    DepthTrack depth{span.t_near, delta};
+    DepthTrack* track = s.depth_outputs ? &depth : nullptr;
+    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
     // Segments whose two ends lie in one empty macrocell are (1, 0); those
     // with an end in a non-empty one are evaluated without further lookups.
     const RunFinder runs(*es, grid);
-    return composite(n, s.order, s.termination, bg, segment, [&](std::int64_t i, int dir) -> std::int64_t {
-        if (dir > 0) {  // front ends i−1..k share a macrocell
-            const auto run = runs.run(i - 1, +1, n);
-            if (run.empty && run.last >= i) return run.last - i + 1;  // segments i..k
-            return -std::max<std::int64_t>(1, run.last - i + 2);      // segments i..k+1
-        }
-        const auto run = runs.run(i, -1, 0);                  // back ends k..i share a macrocell
-        if (run.empty && run.last < i) return i - run.last;   // segments k+1..i
-        return -std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
-    });
+    return composite(
+        n, s.order, s.termination, bg, segment,
+        [&](std::int64_t i, int dir) -> std::int64_t {
+            if (dir > 0) {  // front ends i−1..k share a macrocell
+                const auto run = runs.run(i - 1, +1, n);
+                if (run.empty && run.last >= i) return run.last - i + 1;  // segments i..k
+                return -std::max<std::int64_t>(1, run.last - i + 2);      // segments i..k+1
+            }
+            const auto run = runs.run(i, -1, 0);                  // back ends k..i share a macrocell
+            if (run.empty && run.last < i) return i - run.last;   // segments k+1..i
+            return -std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
+        },
+        track);
 }
 
 }  // namespace fathom

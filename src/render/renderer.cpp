@@ -318,6 +318,10 @@ RayResult Renderer::trace(const Ray& ray) const {
 Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
     const RenderSettings& s = impl_->s;
     Image img(s.width, s.height);
+    if (s.depth_outputs) {
+        img.depth.assign(img.rgba.size() / 4, INFINITY);
+        img.first_hit.assign(img.rgba.size() / 4, INFINITY);
+    }
     constexpr int kTile = 16;
     const int tx = (s.width + kTile - 1) / kTile, ty = (s.height + kTile - 1) / kTile;
     const int tiles = tx * ty;
@@ -335,6 +339,13 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
                         float* p = img.pixel(x, y);
                         for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
                         p[3] = static_cast<float>(r.alpha);
+                        if (s.depth_outputs) {
+                            const std::size_t k =
+                                static_cast<std::size_t>(y) * static_cast<std::size_t>(s.width) +
+                                static_cast<std::size_t>(x);
+                            img.depth[k] = static_cast<float>(r.depth);
+                            img.first_hit[k] = static_cast<float>(r.first_hit);
+                        }
                     }
                 const int d = ++done;
                 if (progress) progress(d, tiles);
