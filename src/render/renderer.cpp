@@ -10,83 +10,10 @@
 #include "fathom/error.h"
 #include "fathom/render.h"
 
-#include "integrate/alpha.h"
-#include "integrate/isosurface.h"
-#include "integrate/preintegrated.h"
-#include "integrate/reference.h"
-#include "integrate/riemann.h"
 #include "render/empty_space.h"
-#include "render/medium.h"
-#include "render/shading.h"
+#include "render/renderer_impl.h"
 
 namespace fathom {
-
-using Tracer = std::function<RayResult(const RaySpan&)>;
-
-struct Renderer::Impl {
-    RenderSettings s;
-    const Volume* lattice = nullptr;  // the volume whose lattice and placement rays use
-    Classifier tf;
-    Mat3 world_to_index;
-    Vec3 origin;
-    double h = 0;  // step in world units
-    Rgb bg{};
-    EmptySpace empty_space;
-    simd::FlatFunction flat_sigma, flat_color;
-    simd::BatchSource batch;  // batch.data == nullptr: no SIMD
-    ShadeSetup shade;
-    Tracer tracer;
-
-    /// The macrocells to skip, or nullptr when skipping is off or useless.
-    [[nodiscard]] const EmptySpace* skipper() const {
-        return s.skip_empty && empty_space.any() ? &empty_space : nullptr;
-    }
-
-    /// The ray's span inside the volume, cropped and clipped; false when
-    /// nothing of it is left. t is the world distance along the ray in both
-    /// spaces (dp = M⁻¹·d with |d| = 1).
-    [[nodiscard]] bool span_of(const Ray& ray, RaySpan& span) const {
-        const Vec3 p0 = world_to_index * (ray.origin - origin);
-        const Vec3 dp = world_to_index * ray.dir;
-        if (!intersect_box(p0, dp, lattice->dims(), span)) return false;
-        if (!s.crop && s.clip_planes.empty()) return true;
-        double t0 = span.t_near, t1 = span.t_far;
-        if (s.crop) {
-            for (int a = 0; a < 3; ++a) {
-                const double o = ray.origin[a], d = ray.dir[a], lo = s.crop->min[a], hi = s.crop->max[a];
-                if (d == 0.0) {
-                    if (o < lo || o > hi) return false;
-                    continue;
-                }
-                double ta = (lo - o) / d, tb = (hi - o) / d;
-                if (ta > tb) std::swap(ta, tb);
-                t0 = std::max(t0, ta);
-                t1 = std::min(t1, tb);
-            }
-        }
-        for (const ClipPlane& pl : s.clip_planes) {  // keep n·(x(t) − p) = a + b·t ≥ 0
-            const double a = dot(pl.normal, ray.origin - pl.point), b = dot(pl.normal, ray.dir);
-            if (b == 0.0) {
-                if (a < 0.0) return false;
-            } else if (b > 0.0) {
-                t0 = std::max(t0, -a / b);
-            } else {
-                t1 = std::min(t1, -a / b);
-            }
-        }
-        if (!(t1 > t0)) return false;
-        span.t_near = t0;
-        span.t_far = t1;
-        return true;
-    }
-
-    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
-        RaySpan span;
-        if (!span_of(ray, span)) return {bg, 0.0};
-        span.sample_offset = sample_offset;
-        return tracer(span);
-    }
-};
 
 namespace {
 
@@ -106,109 +33,6 @@ double jitter_offset(int x, int y, std::uint32_t seed) {
 void check_lattice(const Volume& v, const std::string& what) {
     for (auto d : v.dims())
         if (d < 2) throw Error(what, "every dimension must be at least 2 samples to interpolate");
-}
-
-/// The medium as one ray sees it: shaded media learn the ray's direction.
-template <class Medium>
-decltype(auto) for_ray(const Medium& med, const RaySpan& sp) {
-    if constexpr (Medium::kShaded) {
-        Medium m = med;
-        m.set_ray(sp);
-        return m;
-    } else {
-        return (med);
-    }
-}
-
-template <Model M, class Medium>
-Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
-    const RenderSettings& s = im.s;
-    const double h = im.h;
-    const Rgb bg = im.bg;
-    const EmptySpace* es = im.skipper();
-    const Accel acc{es, im.batch.data != nullptr ? &im.batch : nullptr};
-    switch (s.integrator) {
-        case IntegratorKind::riemann:
-            return [med, s, h, bg, acc](const RaySpan& sp) {
-                return integrate_riemann<M>(for_ray(med, sp), sp, s, h, bg, acc);
-            };
-        case IntegratorKind::alpha:
-            return [med, s, h, bg, acc](const RaySpan& sp) {
-                return integrate_alpha<M>(for_ray(med, sp), sp, s, h, bg, acc);
-            };
-        case IntegratorKind::reference: {
-            const std::vector<double>* breaks = &im.tf.breakpoints();
-            return [med, s, bg, breaks](const RaySpan& sp) {
-                return ReferenceIntegrator<M, Medium>(for_ray(med, sp), sp, s.reference_tolerance, breaks)
-                    .run(bg);
-            };
-        }
-        case IntegratorKind::preintegrated:
-        case IntegratorKind::preintegrated_simple: {
-            const bool full = s.integrator == IntegratorKind::preintegrated;
-            return [med, s, h, bg, full, es](const RaySpan& sp) {
-                return integrate_preintegrated<M>(for_ray(med, sp), sp, s, h, bg, full, es);
-            };
-        }
-    }
-    throw Error("integrator", "unknown integrator");
-}
-
-// Projection modes over the scalar at the n + 1 segment ends: mip (eq. (23),
-// the largest), minip (the smallest), average (the trapezoidal mean along the
-// ray, exact where v is linear along it); I = c(v) (q(v) for an emission TF),
-// α = 1 where the ray meets the box.
-template <Model M, class T>
-Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
-    const double h = im.h;
-    return [med, h](const RaySpan& sp) {
-        const std::int64_t n = segment_count(sp.length(), h);
-        const double delta = sp.length() / static_cast<double>(n);
-        const double first = med.scalar(sp.at(sp.t_near));
-        double v = M == Model::average ? 0.5 * first : first;
-        for (std::int64_t i = 1; i <= n; ++i) {
-            const double s = med.scalar(sp.at(sp.t_near + static_cast<double>(i) * delta));
-            if constexpr (M == Model::mip) v = std::max(v, s);
-            if constexpr (M == Model::minip) v = std::min(v, s);
-            if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
-        }
-        if constexpr (M == Model::average) v /= static_cast<double>(n);
-        return RayResult{med.tf->color(v), 1.0};
-    };
-}
-
-template <class Medium>
-Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
-    switch (im.s.model) {
-        case Model::emission_absorption:
-            return integrator_tracer<Model::emission_absorption>(med, im);
-        case Model::absorption:
-            return integrator_tracer<Model::absorption>(med, im);
-        case Model::emission:
-            return integrator_tracer<Model::emission>(med, im);
-        case Model::mip:
-            if constexpr (Medium::kHasScalar) return projection_tracer<Model::mip>(med, im);
-            break;
-        case Model::minip:
-            if constexpr (Medium::kHasScalar) return projection_tracer<Model::minip>(med, im);
-            break;
-        case Model::average:
-            if constexpr (Medium::kHasScalar) return projection_tracer<Model::average>(med, im);
-            break;
-        case Model::isosurface:
-            if constexpr (Medium::kHasScalar) {
-                const RenderSettings& s = im.s;
-                const double h = im.h;
-                const Rgb bg = im.bg;
-                const ShadeSetup* shade = &im.shade;
-                return [med, s, h, bg, shade](const RaySpan& sp) {
-                    return trace_isosurfaces(med, sp, s, h, bg, *shade);
-                };
-            }
-            break;
-    }
-    throw Error("model '" + std::string(to_string(im.s.model)) + "'",
-                "needs a scalar volume with a transfer function (pre-classified grids are refused)");
 }
 
 /// Macrocell edge (log2 cells): point samples are cheap to skip one by one,
@@ -257,15 +81,8 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
             impl_->shade.lights.push_back(l);
         }
     }
-    impl_->tracer = visit_dtype(volume.dtype(), [&]<class T>(T*) {
-        ScalarMedium<T> med{GridSampler<T>(volume), &impl_->tf};
-        if (shaded) {
-            ShadedScalarMedium<T> sm{med};
-            sm.setup = &impl_->shade;
-            return integrator_tracer<Model::emission_absorption>(sm, *impl_);
-        }
-        return make_tracer(med, *impl_);
-    });
+    impl_->tracer =
+        visit_dtype(volume.dtype(), [&]<class T>(T*) { return scalar_tracer<T>(volume, *impl_, shaded); });
 }
 
 Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings settings)
@@ -291,8 +108,7 @@ Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings se
         if constexpr (std::is_floating_point_v<D>) {
             return visit_dtype(color.dtype(), [&]<class C>(C*) -> Tracer {
                 if constexpr (std::is_floating_point_v<C>) {
-                    GridMedium<D, C> med{GridSampler<D>(density), GridSampler<C>(color)};
-                    return make_tracer(med, *impl_);
+                    return grid_tracer<D, C>(density, color, *impl_);
                 } else {
                     return {};
                 }

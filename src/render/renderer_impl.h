@@ -1,0 +1,94 @@
+// The renderer's state and the per-frame tracer factories, shared by
+// renderer.cpp and the tracer translation units (tracers_*.cpp), which
+// instantiate the ray integrals per sample type in parallel builds.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "fathom/error.h"
+#include "fathom/render.h"
+
+#include "integrate/point_sampled.h"
+#include "integrate/ray_span.h"
+#include "render/empty_space.h"
+#include "render/shading.h"
+
+namespace fathom {
+
+using Tracer = std::function<RayResult(const RaySpan&)>;
+
+struct Renderer::Impl {
+    RenderSettings s;
+    const Volume* lattice = nullptr;  // the volume whose lattice and placement rays use
+    Classifier tf;
+    Mat3 world_to_index;
+    Vec3 origin;
+    double h = 0;  // step in world units
+    Rgb bg{};
+    EmptySpace empty_space;
+    simd::FlatFunction flat_sigma, flat_color;
+    simd::BatchSource batch;  // batch.data == nullptr: no SIMD
+    ShadeSetup shade;
+    Tracer tracer;
+
+    /// The macrocells to skip, or nullptr when skipping is off or useless.
+    [[nodiscard]] const EmptySpace* skipper() const {
+        return s.skip_empty && empty_space.any() ? &empty_space : nullptr;
+    }
+
+    /// The ray's span inside the volume, cropped and clipped; false when
+    /// nothing of it is left. t is the world distance along the ray in both
+    /// spaces (dp = M⁻¹·d with |d| = 1).
+    [[nodiscard]] bool span_of(const Ray& ray, RaySpan& span) const {
+        const Vec3 p0 = world_to_index * (ray.origin - origin);
+        const Vec3 dp = world_to_index * ray.dir;
+        if (!intersect_box(p0, dp, lattice->dims(), span)) return false;
+        if (!s.crop && s.clip_planes.empty()) return true;
+        double t0 = span.t_near, t1 = span.t_far;
+        if (s.crop) {
+            for (int a = 0; a < 3; ++a) {
+                const double o = ray.origin[a], d = ray.dir[a], lo = s.crop->min[a], hi = s.crop->max[a];
+                if (d == 0.0) {
+                    if (o < lo || o > hi) return false;
+                    continue;
+                }
+                double ta = (lo - o) / d, tb = (hi - o) / d;
+                if (ta > tb) std::swap(ta, tb);
+                t0 = std::max(t0, ta);
+                t1 = std::min(t1, tb);
+            }
+        }
+        for (const ClipPlane& pl : s.clip_planes) {  // keep n·(x(t) − p) = a + b·t ≥ 0
+            const double a = dot(pl.normal, ray.origin - pl.point), b = dot(pl.normal, ray.dir);
+            if (b == 0.0) {
+                if (a < 0.0) return false;
+            } else if (b > 0.0) {
+                t0 = std::max(t0, -a / b);
+            } else {
+                t1 = std::min(t1, -a / b);
+            }
+        }
+        if (!(t1 > t0)) return false;
+        span.t_near = t0;
+        span.t_far = t1;
+        return true;
+    }
+
+    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
+        RaySpan span;
+        if (!span_of(ray, span)) return {bg, 0.0};
+        span.sample_offset = sample_offset;
+        return tracer(span);
+    }
+};
+
+/// The tracer of a scalar volume of sample type T (shaded: the
+/// emission–absorption model with gradient shading).
+template <class T>
+Tracer scalar_tracer(const Volume& volume, const Renderer::Impl& im, bool shaded);
+/// The tracer of pre-classified density (D) and color (C) grids.
+template <class D, class C>
+Tracer grid_tracer(const Volume& density, const Volume& color, const Renderer::Impl& im);
+
+}  // namespace fathom

@@ -1,0 +1,139 @@
+// The ray integrals instantiated per medium × model × integrator (included
+// by the tracers_*.cpp translation units only).
+#pragma once
+
+#include "integrate/alpha.h"
+#include "integrate/isosurface.h"
+#include "integrate/preintegrated.h"
+#include "integrate/reference.h"
+#include "integrate/riemann.h"
+#include "render/medium.h"
+#include "render/renderer_impl.h"
+#include "render/shading.h"
+
+namespace fathom {
+namespace detail {
+
+/// The medium as one ray sees it: shaded media learn the ray's direction.
+template <class Medium>
+decltype(auto) for_ray(const Medium& med, const RaySpan& sp) {
+    if constexpr (Medium::kShaded) {
+        Medium m = med;
+        m.set_ray(sp);
+        return m;
+    } else {
+        return (med);
+    }
+}
+
+template <Model M, class Medium>
+Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
+    const RenderSettings& s = im.s;
+    const double h = im.h;
+    const Rgb bg = im.bg;
+    const EmptySpace* es = im.skipper();
+    const Accel acc{es, im.batch.data != nullptr ? &im.batch : nullptr};
+    switch (s.integrator) {
+        case IntegratorKind::riemann:
+            return [med, s, h, bg, acc](const RaySpan& sp) {
+                return integrate_riemann<M>(for_ray(med, sp), sp, s, h, bg, acc);
+            };
+        case IntegratorKind::alpha:
+            return [med, s, h, bg, acc](const RaySpan& sp) {
+                return integrate_alpha<M>(for_ray(med, sp), sp, s, h, bg, acc);
+            };
+        case IntegratorKind::reference: {
+            const std::vector<double>* breaks = &im.tf.breakpoints();
+            return [med, s, bg, breaks](const RaySpan& sp) {
+                return ReferenceIntegrator<M, Medium>(for_ray(med, sp), sp, s.reference_tolerance, breaks)
+                    .run(bg);
+            };
+        }
+        case IntegratorKind::preintegrated:
+        case IntegratorKind::preintegrated_simple: {
+            const bool full = s.integrator == IntegratorKind::preintegrated;
+            return [med, s, h, bg, full, es](const RaySpan& sp) {
+                return integrate_preintegrated<M>(for_ray(med, sp), sp, s, h, bg, full, es);
+            };
+        }
+    }
+    throw Error("integrator", "unknown integrator");
+}
+
+// Projection modes over the scalar at the n + 1 segment ends: mip (eq. (23),
+// the largest), minip (the smallest), average (the trapezoidal mean along the
+// ray, exact where v is linear along it); I = c(v) (q(v) for an emission TF),
+// α = 1 where the ray meets the box.
+template <Model M, class T>
+Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
+    const double h = im.h;
+    return [med, h](const RaySpan& sp) {
+        const std::int64_t n = segment_count(sp.length(), h);
+        const double delta = sp.length() / static_cast<double>(n);
+        const double first = med.scalar(sp.at(sp.t_near));
+        double v = M == Model::average ? 0.5 * first : first;
+        for (std::int64_t i = 1; i <= n; ++i) {
+            const double s = med.scalar(sp.at(sp.t_near + static_cast<double>(i) * delta));
+            if constexpr (M == Model::mip) v = std::max(v, s);
+            if constexpr (M == Model::minip) v = std::min(v, s);
+            if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
+        }
+        if constexpr (M == Model::average) v /= static_cast<double>(n);
+        return RayResult{med.tf->color(v), 1.0};
+    };
+}
+
+template <class Medium>
+Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
+    switch (im.s.model) {
+        case Model::emission_absorption:
+            return integrator_tracer<Model::emission_absorption>(med, im);
+        case Model::absorption:
+            return integrator_tracer<Model::absorption>(med, im);
+        case Model::emission:
+            return integrator_tracer<Model::emission>(med, im);
+        case Model::mip:
+            if constexpr (Medium::kHasScalar) return projection_tracer<Model::mip>(med, im);
+            break;
+        case Model::minip:
+            if constexpr (Medium::kHasScalar) return projection_tracer<Model::minip>(med, im);
+            break;
+        case Model::average:
+            if constexpr (Medium::kHasScalar) return projection_tracer<Model::average>(med, im);
+            break;
+        case Model::isosurface:
+            if constexpr (Medium::kHasScalar) {
+                const RenderSettings& s = im.s;
+                const double h = im.h;
+                const Rgb bg = im.bg;
+                const ShadeSetup* shade = &im.shade;
+                return [med, s, h, bg, shade](const RaySpan& sp) {
+                    return trace_isosurfaces(med, sp, s, h, bg, *shade);
+                };
+            }
+            break;
+    }
+    throw Error("model '" + std::string(to_string(im.s.model)) + "'",
+                "needs a scalar volume with a transfer function (pre-classified grids are refused)");
+}
+
+}  // namespace detail
+
+template <class T>
+Tracer scalar_tracer(const Volume& volume, const Renderer::Impl& im, bool shaded) {
+    ScalarMedium<T> med{GridSampler<T>(volume), &im.tf};
+    if (shaded) {
+        ShadedScalarMedium<T> sm{med};
+        sm.setup = &im.shade;
+        return detail::integrator_tracer<Model::emission_absorption>(sm, im);
+    }
+    return detail::make_tracer(med, im);
+}
+
+template <class D, class C>
+Tracer grid_tracer(const Volume& density, const Volume& color, const Renderer::Impl& im) {
+    GridMedium<D, C> med{GridSampler<D>(density), GridSampler<C>(color)};
+    return detail::make_tracer(med, im);
+}
+
+}  // namespace fathom
