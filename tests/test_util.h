@@ -4,9 +4,13 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <functional>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
+
+#include "fathom/error.h"
 
 namespace fathom::test {
 
@@ -52,5 +56,19 @@ public:
 private:
     std::filesystem::path path_;
 };
+
+/// Expects fathom::Error whose message contains the file name and every key word.
+inline void expect_error(const std::function<void()>& f, const std::filesystem::path& file,
+                         const std::vector<std::string>& words) {
+    try {
+        f();
+        ADD_FAILURE() << "no error for " << file;
+    } catch (const Error& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find(file.string()), std::string::npos) << what;
+        for (const auto& w : words)
+            EXPECT_NE(what.find(w), std::string::npos) << "'" << w << "' not in: " << what;
+    }
+}
 
 }  // namespace fathom::test

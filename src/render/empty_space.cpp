@@ -68,18 +68,16 @@ int resolve_threads(int threads) {
 
 }  // namespace
 
-EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads) {
+template <class Empty>
+EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empty&& empty) {
     EmptySpace es;
-    if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return es;
     es.shift_ = shift;
     es.nodes_ = v.dims();
     es.dims_[0] = macro_dims(v, shift);
     const auto ranges = macrocell_ranges(v, es.dims_[0], shift, resolve_threads(threads));
     es.empty_[0].resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
-        const Range& r = ranges[i];
-        if (r.nan) continue;
-        const bool e = medium_zero_on(tf, m, r.lo, r.hi);
+        const bool e = !ranges[i].nan && empty(ranges[i].lo, ranges[i].hi);  // NaN nodes: never empty
         es.empty_[0][i] = e ? 1 : 0;
         es.any_ = es.any_ || e;
     }
@@ -87,20 +85,14 @@ EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m
     return es;
 }
 
+EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads) {
+    if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return {};
+    return from_ranges(v, shift, threads,
+                       [&](double lo, double hi) { return medium_zero_on(tf, m, lo, hi); });
+}
+
 EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads) {
-    EmptySpace es;
-    es.shift_ = shift;
-    es.nodes_ = density.dims();
-    es.dims_[0] = macro_dims(density, shift);
-    const auto ranges = macrocell_ranges(density, es.dims_[0], shift, resolve_threads(threads));
-    es.empty_[0].resize(ranges.size());
-    for (std::size_t i = 0; i < ranges.size(); ++i) {
-        const bool e = !ranges[i].nan && ranges[i].lo == 0.0 && ranges[i].hi == 0.0;
-        es.empty_[0][i] = e ? 1 : 0;
-        es.any_ = es.any_ || e;
-    }
-    es.build_coarse();
-    return es;
+    return from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
 }
 
 void EmptySpace::build_coarse() {

@@ -100,6 +100,9 @@ public:
     }
 
 private:
+    /// Macrocells whose node range [lo, hi] satisfies empty(lo, hi) are empty.
+    template <class Empty>
+    static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     void build_coarse();
     [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
         const double x = std::clamp(p, 0.0, static_cast<double>(nodes_[a] - 1));

@@ -21,6 +21,7 @@
 #include "test_util.h"
 
 using namespace fathom;
+using fathom::test::expect_error;
 using fathom::test::TempDir;
 namespace fs = std::filesystem;
 
@@ -80,20 +81,6 @@ std::vector<T> ramp(std::size_t n, long modulo = 1000, long offset = 0) {
     std::vector<T> v(n);
     for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<T>(static_cast<long>(i) % modulo + offset);
     return v;
-}
-
-/// Expects fathom::Error whose message contains the file name and every key word.
-void expect_error(const std::function<void()>& f, const fs::path& file,
-                  const std::vector<std::string>& words) {
-    try {
-        f();
-        ADD_FAILURE() << "no error for " << file;
-    } catch (const Error& e) {
-        const std::string what = e.what();
-        EXPECT_NE(what.find(file.string()), std::string::npos) << what;
-        for (const auto& w : words)
-            EXPECT_NE(what.find(w), std::string::npos) << "'" << w << "' not in: " << what;
-    }
 }
 
 /// Collects warnings for the scope's lifetime.

@@ -25,6 +25,7 @@
 #include "test_util.h"
 
 using namespace fathom;
+using fathom::test::expect_error;
 using fathom::test::TempDir;
 namespace fs = std::filesystem;
 
@@ -69,20 +70,6 @@ std::string base64(const std::string& data) {
         for (std::size_t k = 0; k < 4; ++k) out += k <= n ? kAlphabet[(bits >> (18 - 6 * k)) & 63u] : '=';
     }
     return out;
-}
-
-/// Expects fathom::Error whose message contains the file name and every key word.
-void expect_error(const std::function<void()>& f, const fs::path& file,
-                  const std::vector<std::string>& words) {
-    try {
-        f();
-        ADD_FAILURE() << "no error for " << file;
-    } catch (const Error& e) {
-        const std::string what = e.what();
-        EXPECT_NE(what.find(file.string()), std::string::npos) << what;
-        for (const auto& w : words)
-            EXPECT_NE(what.find(w), std::string::npos) << "'" << w << "' not in: " << what;
-    }
 }
 
 /// Reads the file: either a volume or a fathom::Error naming the file, never anything else.

@@ -138,19 +138,6 @@ fathom::Scene load_scene(const Args& a) {
     return sc;
 }
 
-// The camera of frame f: the scene's camera rotated about the box centre's
-// vertical (+z) axis by f·turn degrees (the same as apps/fathom/bench.cpp).
-fathom::Camera frame_camera(const fathom::Camera& c, const Vec3& center, double degrees) {
-    const double a = degrees * std::numbers::pi / 180.0, ca = std::cos(a), sa = std::sin(a);
-    auto rot = [&](const Vec3& v) { return Vec3{ca * v.x - sa * v.y, sa * v.x + ca * v.y, v.z}; };
-    fathom::Camera r = c;
-    r.position = center + rot(c.position - center);
-    r.forward = rot(c.forward);
-    r.right = rot(c.right);
-    r.up = rot(c.up);
-    return r;
-}
-
 // One fathom renderer and its frame times.
 struct FathomSide {
     std::string integrator;
@@ -492,11 +479,11 @@ int run(const Args& a) {
     // space-leaping min/max volume and the GL context on its first frame),
     // then the frames interleaved (fathom, VTK, fathom, VTK, ...) so that
     // any change in the machine's load hits every renderer alike.
-    const fathom::Camera cam0 = frame_camera(sc.camera, center, 0.0);
+    const fathom::Camera cam0 = sc.camera.turned(center, 0.0);
     for (auto& r : fathom_runs) (void)r.render(cam0);
     (void)vtk.render(cam0);
     for (int f = 0; f < a.frames; ++f) {
-        const fathom::Camera cam = frame_camera(sc.camera, center, f * a.turn);
+        const fathom::Camera cam = sc.camera.turned(center, f * a.turn);
         for (auto& r : fathom_runs) r.seconds.push_back(r.render(cam));
         vtk.seconds.push_back(vtk.render(cam));
         vtk.mapper_seconds.push_back(vtk.mapper_time());
