@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "fathom/image.h"
 #include "fathom/volume.h"
@@ -61,9 +62,66 @@ Volume read_legacy_vtk(const std::filesystem::path& path);
 /// UInt64 headers; WholeExtent, Origin, Spacing and Direction.
 Volume read_vti(const std::filesystem::path& path);
 
-/// Any supported volume file: the format is found from the content (magic
-/// bytes), then the extension, then the raw naming convention.
-Volume read_volume(const std::filesystem::path& path);
+/// NIfTI-1 and NIfTI-2 (.nii, .nii.gz, .hdr/.img pairs) through libnifti2:
+/// one 3D scalar volume (a 4D file's first volume is refused unless its
+/// fourth axis has one sample); scl_slope/scl_inter applied (slope 0 or NaN:
+/// unscaled); placement from the sform (else qform, else pixdim) mapped
+/// from NIfTI's RAS+ world to fathom's LPS world (SPEC §2).
+Volume read_nifti(const std::filesystem::path& path);
+
+/// One DICOM series found in a folder (or list of files).
+struct DicomSeries {
+    std::string uid;          // SeriesInstanceUID
+    std::string description;  // SeriesDescription (may be empty)
+    std::string modality;     // Modality (CT, MR, ...)
+    std::int64_t rows = 0, columns = 0;
+    std::vector<std::filesystem::path> files;  // the series' image files (unsorted)
+};
+
+/// The series of the DICOM files in a folder (recursively) or of one file.
+/// Files that are not DICOM are skipped; no DICOM file at all is an error.
+std::vector<DicomSeries> list_dicom_series(const std::filesystem::path& path);
+
+/// One DICOM series as a volume (GDCM): slices sorted by
+/// ImagePositionPatient along the slice normal, spacing between slices from
+/// the positions, RescaleSlope/Intercept applied (CT in Hounsfield units),
+/// placed by ImageOrientationPatient (LPS, SPEC §2). `series_uid` selects
+/// one of several series (empty: the folder must hold exactly one).
+/// Missing or duplicate slices and mixed orientations are errors.
+Volume read_dicom(const std::filesystem::path& path, const std::string& series_uid = {});
+/// The same for an explicit list of files (one series).
+Volume read_dicom_files(const std::vector<std::filesystem::path>& files, const std::string& subject);
+
+/// A grid in an OpenVDB file.
+struct VdbGrid {
+    std::string name;
+    std::string type;             // e.g. "float", "vec3s"
+    std::uint64_t active_voxels = 0;
+    std::array<std::int64_t, 3> bbox_min{0, 0, 0}, bbox_max{0, 0, 0};  // active index bbox (inclusive)
+};
+
+/// The grids of an OpenVDB file.
+std::vector<VdbGrid> list_vdb_grids(const std::filesystem::path& path);
+/// A float grid of an OpenVDB file (.vdb) as a dense float32 volume over its
+/// active bounding box (inactive voxels read the background value); the
+/// grid's voxel size and translation give the placement.
+Volume read_vdb(const std::filesystem::path& path, const std::string& grid = "density");
+
+/// Choices for files that hold several volumes.
+struct ReadOptions {
+    std::string series;  // DICOM SeriesInstanceUID (empty: the only series)
+    std::string grid;    // OpenVDB grid name (empty: "density")
+};
+
+/// Any supported volume file, or a folder holding a DICOM series: the format
+/// is found from the content (magic bytes), then the extension, then the raw
+/// naming convention.
+Volume read_volume(const std::filesystem::path& path, const ReadOptions& options = {});
+
+/// Writes a volume as an attached NRRD (gzip-encoded unless gzip is false)
+/// with its type, components, space directions and origin (LPS), so that
+/// read_nrrd gives the same bits back. Atomic like write_image.
+void write_nrrd(const std::filesystem::path& path, const Volume& volume, bool gzip = true);
 
 /// Image files by extension: .pfm, .png, .exr (SPEC §6). Written to a
 /// temporary name beside the target and renamed, so a failure leaves no

@@ -90,6 +90,10 @@ struct TransferFunction {
     std::optional<double> opacity_unit_distance;          // only with Alpha::opacity
     bool associated = false;                              // true: "emission" (q); false: "color" (c)
     std::vector<std::pair<double, Rgb>> color_points;     // (v, rgb)
+    /// Optional gradient opacity (VTK's): (|∇v|, f) points, |∇v| in scalar
+    /// units per world unit, f ∈ [0, 1]; σ is multiplied by f(|∇v|). Empty:
+    /// no modulation.
+    std::vector<std::pair<double, double>> gradient_opacity_points;
 
     /// Parses fathom-tf/1 JSON text; errors name `subject` (the file).
     static TransferFunction from_json_text(std::string_view text, const std::string& subject);
@@ -129,6 +133,12 @@ public:
     [[nodiscard]] bool color_zero_on(double a, double b) const { return color_.zero_on(a, b); }
     [[nodiscard]] const PiecewiseLinear<1>& sigma_function() const { return sigma_; }
     [[nodiscard]] const PiecewiseLinear<3>& color_function() const { return color_; }
+    /// True when the TF has gradient-opacity points.
+    [[nodiscard]] bool has_gradient_opacity() const { return !grad_opacity_.empty(); }
+    /// The gradient-opacity factor f(|∇v|) (1 without gradient opacity).
+    [[nodiscard]] double gradient_factor(double magnitude) const {
+        return grad_opacity_.empty() ? 1.0 : grad_opacity_(magnitude)[0];
+    }
     /// Every control value of σ and of the color, sorted, without duplicates:
     /// the v where σ(v) or g(v) may bend or jump.
     [[nodiscard]] const std::vector<double>& breakpoints() const { return breaks_; }
@@ -136,6 +146,7 @@ public:
 private:
     PiecewiseLinear<1> sigma_;
     PiecewiseLinear<3> color_;
+    PiecewiseLinear<1> grad_opacity_;
     bool associated_ = false;
     std::vector<double> breaks_;
 };

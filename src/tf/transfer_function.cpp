@@ -82,6 +82,9 @@ Classifier::Classifier(const TransferFunction& tf, double default_unit_distance)
     }
     sigma_ = PiecewiseLinear<1>(std::move(s));
     color_ = PiecewiseLinear<3>(tf.color_points);
+    std::vector<std::pair<double, std::array<double, 1>>> g;
+    for (const auto& [m, f] : tf.gradient_opacity_points) g.push_back({m, {f}});
+    grad_opacity_ = PiecewiseLinear<1>(std::move(g));
     for (const auto& p : tf.alpha_points) breaks_.push_back(p.first);
     for (const auto& p : tf.color_points) breaks_.push_back(p.first);
     std::sort(breaks_.begin(), breaks_.end());
@@ -124,8 +127,9 @@ std::vector<std::vector<double>> read_points(const json& j, const std::string& k
 
 TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subject) {
     if (!j.is_object()) throw Error(subject, "a transfer function must be a JSON object");
-    static const std::array<std::string, 7> kKeys{
-        "format", "name", "color", "emission", "opacity", "extinction", "opacity_unit_distance"};
+    static const std::array<std::string, 8> kKeys{"format",     "name",       "color",
+                                                  "emission",   "opacity",    "extinction",
+                                                  "opacity_unit_distance", "gradient_opacity"};
     for (const auto& [key, value] : j.items())
         if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
             throw Error(subject, "unknown key '" + key + "' in transfer function");
@@ -168,6 +172,15 @@ TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subjec
         if (u <= 0) throw Error(subject, "'opacity_unit_distance' must be > 0");
         tf.opacity_unit_distance = u;
     }
+    if (j.contains("gradient_opacity"))
+        for (const auto& p : read_points(j["gradient_opacity"], "gradient_opacity", 2, subject)) {
+            if (p[0] < 0)
+                throw Error(subject, "'gradient_opacity' has a negative gradient magnitude " + std::to_string(p[0]));
+            if (p[1] < 0 || p[1] > 1)
+                throw Error(subject, "'gradient_opacity' factor " + std::to_string(p[1]) + " at |grad| = " +
+                                         std::to_string(p[0]) + " is outside [0, 1]");
+            tf.gradient_opacity_points.push_back({p[0], p[1]});
+        }
     return tf;
 }
 
@@ -182,6 +195,11 @@ nlohmann::json tf_to_json(const TransferFunction& tf) {
     for (const auto& [v, x] : tf.alpha_points) a.push_back({v, x});
     j[tf.alpha_kind == TransferFunction::Alpha::opacity ? "opacity" : "extinction"] = a;
     if (tf.opacity_unit_distance) j["opacity_unit_distance"] = *tf.opacity_unit_distance;
+    if (!tf.gradient_opacity_points.empty()) {
+        json g = json::array();
+        for (const auto& [m, f] : tf.gradient_opacity_points) g.push_back({m, f});
+        j["gradient_opacity"] = g;
+    }
     return j;
 }
 
