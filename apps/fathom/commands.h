@@ -12,6 +12,7 @@ struct UsageError : std::runtime_error {
 
 void add_render_command(CLI::App& app);
 void add_info_command(CLI::App& app);
+void add_convert_command(CLI::App& app);
 void add_tf_table_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
     app.fallthrough(false);
     fathom::cli::add_render_command(app);
     fathom::cli::add_info_command(app);
+    fathom::cli::add_convert_command(app);
     fathom::cli::add_tf_table_command(app);
     fathom::cli::add_bench_command(app);
     try {

@@ -42,8 +42,11 @@ std::string scene_from_flags(const SceneArgs& a) {
         orbit = {{"azimuth", v[0]}, {"elevation", v[1]}};
         if (v.size() == 3) orbit["distance"] = v[2];
     }
+    json volume = {{"path", fs::absolute(a.volume).string()}};
+    if (!a.series.empty()) volume["series"] = a.series;
+    if (!a.grid.empty()) volume["grid"] = a.grid;
     return json{{"format", "fathom-scene/1"},
-                {"volume", {{"path", fs::absolute(a.volume).string()}}},
+                {"volume", volume},
                 {"transfer_function", tf},
                 {"camera", {{"orbit", orbit}}}}
         .dump();
@@ -65,6 +68,11 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
     if (a.no_skip_empty) s.skip_empty = false;
     if (a.no_simd) s.simd = false;
     if (a.shade) s.shading.enabled = true;
+    if (!a.gradient.empty()) {
+        if (a.gradient != "on-the-fly" && a.gradient != "precomputed")
+            throw UsageError("--gradient must be on-the-fly or precomputed, got '" + a.gradient + "'");
+        s.gradient = a.gradient == "precomputed" ? GradientSource::precomputed : GradientSource::on_the_fly;
+    }
     if (!a.isos.empty()) {
         s.isosurfaces.clear();
         for (const auto& text : a.isos) {
@@ -121,6 +129,9 @@ void apply_overrides(RenderSettings& s, const SceneArgs& a) {
 void SceneArgs::add_to(CLI::App* cmd) {
     cmd->add_option("scene", this->scene, "Scene file (fathom-scene/1 JSON)");
     cmd->add_option("--volume", this->volume, "Volume file (no-scene form)");
+    cmd->add_option("--series", this->series,
+                    "DICOM SeriesInstanceUID when the --volume folder holds several series");
+    cmd->add_option("--grid", this->grid, "OpenVDB grid name for a --volume .vdb file (default density)");
     cmd->add_option("--tf", this->tf, "Transfer function file (fathom-tf/1 JSON), with --volume");
     cmd->add_option(
         "--preset", this->preset,
@@ -148,6 +159,9 @@ void SceneArgs::add_to(CLI::App* cmd) {
     cmd->add_flag("--jitter", this->jitter,
                   "Hashed per-pixel sample offsets for riemann/alpha (wood-grain to noise)");
     this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
+    cmd->add_option("--gradient", this->gradient,
+                    "Gradient for --shade and gradient opacity: on-the-fly (default: central differences "
+                    "of the trilinear field) or precomputed (a node-gradient volume, 12 bytes per voxel)");
     cmd->add_flag("--no-skip-empty", this->no_skip_empty,
                   "Turn off exact empty-space skipping (same image; to measure what it buys)");
     cmd->add_option("--iso", this->isos,
@@ -171,8 +185,10 @@ void SceneArgs::add_to(CLI::App* cmd) {
 Scene SceneArgs::load(const std::string& command) const {
     if (scene.empty() == volume.empty())
         throw UsageError(command + " needs either a SCENE file or --volume (not both)");
-    if (!scene.empty() && (!tf.empty() || !preset.empty() || !orbit.empty()))
-        throw UsageError("--tf, --preset and --orbit go with --volume, not with a scene file");
+    if (!scene.empty() &&
+        (!tf.empty() || !preset.empty() || !orbit.empty() || !series.empty() || !grid.empty()))
+        throw UsageError(
+            "--tf, --preset, --orbit, --series and --grid go with --volume, not with a scene file");
     Scene sc =
         scene.empty() ? parse_scene(scene_from_flags(*this), fs::current_path(), volume) : load_scene(scene);
     try {

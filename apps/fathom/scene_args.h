@@ -13,10 +13,10 @@
 namespace fathom::cli {
 
 struct SceneArgs {
-    std::string scene, volume, tf, preset, orbit, background, crop, phong;
+    std::string scene, volume, series, grid, tf, preset, orbit, background, crop, phong;
     std::vector<std::string> clip_planes, isos;
     int width = 0, height = 0, threads = 0;
-    std::string model, integrator, order, sample_point, step_unit;
+    std::string model, integrator, order, sample_point, step_unit, gradient;
     double step = 0, termination = 0;
     bool jitter = false;
     bool no_skip_empty = false;

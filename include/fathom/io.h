@@ -95,7 +95,7 @@ Volume read_dicom_files(const std::vector<std::filesystem::path>& files, const s
 /// A grid in an OpenVDB file.
 struct VdbGrid {
     std::string name;
-    std::string type;             // e.g. "float", "vec3s"
+    std::string type;  // e.g. "float", "vec3s"
     std::uint64_t active_voxels = 0;
     std::array<std::int64_t, 3> bbox_min{0, 0, 0}, bbox_max{0, 0, 0};  // active index bbox (inclusive)
 };

@@ -70,6 +70,17 @@ struct Shading {
     std::vector<Light> lights;
 };
 
+/// Where shading and gradient opacity get the gradient ∇v from.
+enum class GradientSource : std::uint8_t {
+    /// Central differences of the trilinear field at each sample (6 lookups).
+    on_the_fly,
+    /// A precomputed volume of node gradients (3 float32 per node, central
+    /// differences of the nodes), interpolated trilinearly: one lookup of 3
+    /// components per sample. Falls back to on_the_fly, with a warning, when
+    /// the gradient volume would exceed RenderSettings::gradient_memory.
+    precomputed,
+};
+
 /// One surface of the isosurface model: where the scalar crosses `value`,
 /// lit with the shading coefficients, composited with `opacity`.
 struct IsoSurface {
@@ -100,6 +111,9 @@ struct RenderSettings {
     /// radiance ≤ 1, relative above).
     double reference_tolerance = 1e-5;
     Shading shading;
+    GradientSource gradient = GradientSource::on_the_fly;
+    /// Most bytes a precomputed gradient volume may take (default 2 GiB).
+    std::uint64_t gradient_memory = std::uint64_t{2} << 30;
     /// Also compute RayResult::depth and first_hit (Renderer::render then
     /// fills Image::depth and Image::first_hit).
     bool depth_outputs = false;

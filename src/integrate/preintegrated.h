@@ -186,11 +186,22 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             // constant over the segment (Lum, Wilson and Ma 2004): g' = g·D +
             // σ·S integrates to D·E + S·∫σ·e^{−τ} = D·E + S·(1 − t), or
             // D·E + S·τ without self-attenuation.
+            //
+            // Gradient opacity scales σ and g by f, constant over the
+            // segment: without self-attenuation exactly E' = f·E, t' = t^f;
+            // with it, t' = t^f and E' = E·(1 − t^f)/(1 − t) (opacity-
+            // weighted, exact where the TF is constant over the segment).
             Segment seg = preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
             if (seg.transmittance == 1.0 && seg.radiance == Rgb{0, 0, 0}) return seg;  // nothing to shade
             const ShadeFactors sf =
                 medium.factors(span.at(span.t_near + (static_cast<double>(i) - 0.5) * delta));
-            const double t = seg.transmittance;
+            double t = seg.transmittance;
+            if (sf.opacity != 1.0) {
+                const double tf = std::pow(t, sf.opacity);
+                const double scale = !full ? sf.opacity : (t < 1.0 ? (1.0 - tf) / (1.0 - t) : sf.opacity);
+                for (double& r : seg.radiance) r *= scale;
+                seg.transmittance = t = tf;
+            }
             const double a = full ? 1.0 - t : (t > 0.0 ? -std::log(t) : 0.0);
             for (int c = 0; c < 3; ++c)
                 seg.radiance[c] = seg.radiance[c] * sf.diffuse[c] + a * sf.specular[c];

@@ -106,16 +106,21 @@ Volume load_raw_entry(const json& j, const fs::path& path, const Ctx& cx) {
 }
 
 void load_volume_entry(Scene& sc, const json& j, const Ctx& cx) {
-    only_keys(j, {"path", "dims", "dtype", "spacing", "origin", "endian", "header_bytes", "density", "color"},
+    only_keys(j,
+              {"path", "dims", "dtype", "spacing", "origin", "endian", "header_bytes", "density", "color",
+               "series", "grid"},
               "'volume'", cx);
+    ReadOptions options;
+    if (j.contains("series")) options.series = string(j["series"], "volume 'series'", cx);
+    if (j.contains("grid")) options.grid = string(j["grid"], "volume 'grid'", cx);
     const bool pre = j.contains("density") || j.contains("color");
     if (pre) {
         if (!j.contains("density") || !j.contains("color"))
             cx.fail("a pre-classified volume needs both 'density' and 'color'");
-        for (const char* k : {"path", "dims", "dtype", "endian", "header_bytes"})
+        for (const char* k : {"path", "dims", "dtype", "endian", "header_bytes", "series"})
             if (j.contains(k)) cx.fail(std::string("'") + k + "' is not allowed beside 'density'/'color'");
-        sc.volume = read_volume(resolve(j["density"], "volume 'density'", cx));
-        sc.color = read_volume(resolve(j["color"], "volume 'color'", cx));
+        sc.volume = read_volume(resolve(j["density"], "volume 'density'", cx), options);
+        sc.color = read_volume(resolve(j["color"], "volume 'color'", cx), options);
         apply_placement(sc.volume, j, cx);
         apply_placement(*sc.color, j, cx);
         return;
@@ -123,12 +128,15 @@ void load_volume_entry(Scene& sc, const json& j, const Ctx& cx) {
     if (!j.contains("path")) cx.fail("'volume' needs 'path' (or 'density' and 'color')");
     const fs::path path = resolve(j["path"], "volume 'path'", cx);
     if (j.contains("dims")) {
+        for (const char* k : {"series", "grid"})
+            if (j.contains(k))
+                cx.fail(std::string("volume '") + k + "' is not allowed with 'dims' (a raw file)");
         sc.volume = load_raw_entry(j, path, cx);
     } else {
         for (const char* k : {"dtype", "endian", "header_bytes"})
             if (j.contains(k))
                 cx.fail(std::string("volume '") + k + "' is only allowed with 'dims' (a raw file)");
-        sc.volume = read_volume(path);
+        sc.volume = read_volume(path, options);
     }
     apply_placement(sc.volume, j, cx);
 }
@@ -213,8 +221,14 @@ void load_render(RenderSettings& s, const json& j, const Ctx& cx) {
     only_keys(j,
               {"width", "height", "model", "integrator", "step", "step_unit", "sample_point", "order",
                "termination", "background", "jitter", "jitter_seed", "crop", "clip_planes", "shading",
-               "isosurfaces"},
+               "isosurfaces", "gradient"},
               "'render'", cx);
+    if (j.contains("gradient")) {
+        const std::string g = string(j["gradient"], "render 'gradient'", cx);
+        if (g != "on-the-fly" && g != "precomputed")
+            cx.fail("render 'gradient' must be \"on-the-fly\" or \"precomputed\"");
+        s.gradient = g == "precomputed" ? GradientSource::precomputed : GradientSource::on_the_fly;
+    }
     if (j.contains("width")) s.width = positive_int(j["width"], "render 'width'", cx);
     if (j.contains("height")) s.height = positive_int(j["height"], "render 'height'", cx);
     if (j.contains("model")) s.model = parse_model(string(j["model"], "render 'model'", cx), cx.subject);

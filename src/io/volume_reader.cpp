@@ -63,10 +63,14 @@ bool looks_like_nifti(std::string_view head) {
 }
 
 /// DICOM Part 10: the preamble's 128 bytes, then "DICM".
-bool looks_like_dicom(std::string_view head) { return head.size() >= 132 && head.substr(128, 4) == "DICM"; }
+bool looks_like_dicom(std::string_view head) {
+    return head.size() >= 132 && head.substr(128, 4) == "DICM";
+}
 
 /// OpenVDB: the magic number 0x56444220 (" BDV" little-endian) first.
-bool looks_like_vdb(std::string_view head) { return head.starts_with(std::string_view(" BDV", 4)); }
+bool looks_like_vdb(std::string_view head) {
+    return head.starts_with(std::string_view(" BDV", 4));
+}
 
 /// Reader for a content signature, or nullptr.
 Reader reader_by_content(std::string_view head) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fathom/error.h"
+#include "fathom/log.h"
 #include "fathom/render.h"
 
 #include "render/empty_space.h"
@@ -72,17 +73,35 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
                         volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color};
     }
     const Shading& sh = impl_->s.shading;
-    const bool shaded = sh.enabled && impl_->s.model == Model::emission_absorption;
-    if (shaded || impl_->s.model == Model::isosurface) {  // isosurfaces are always lit
+    const Model model = impl_->s.model;
+    const bool lit = sh.enabled && model == Model::emission_absorption;
+    const bool optical =
+        model == Model::emission_absorption || model == Model::absorption || model == Model::emission;
+    const bool modulated = optical && impl_->tf.has_gradient_opacity();
+    const bool gradient_work = lit || modulated;
+    if (gradient_work || model == Model::isosurface) {  // isosurfaces are always lit
         impl_->shade = {sh.ambient,   sh.diffuse, sh.specular, sh.shininess, {}, impl_->world_to_index,
                         volume.axes()};
         for (Light l : sh.lights) {
             l.direction = l.direction * (1.0 / length(l.direction));
             impl_->shade.lights.push_back(l);
         }
+        impl_->shade.light = lit || model == Model::isosurface;
+        impl_->shade.modulate = modulated ? &impl_->tf : nullptr;
+        if (gradient_work && impl_->s.gradient == GradientSource::precomputed) {
+            const std::uint64_t bytes = static_cast<std::uint64_t>(volume.num_nodes()) * 3 * sizeof(float);
+            if (bytes <= impl_->s.gradient_memory) {
+                impl_->gradients = node_gradients(volume, impl_->world_to_index, impl_->s.threads);
+                impl_->shade.gradients = &impl_->gradients;
+            } else {
+                warn("gradient volume of " + std::to_string(bytes >> 20) + " MiB exceeds the limit of " +
+                     std::to_string(impl_->s.gradient_memory >> 20) +
+                     " MiB: gradients are computed on the fly");
+            }
+        }
     }
-    impl_->tracer =
-        visit_dtype(volume.dtype(), [&]<class T>(T*) { return scalar_tracer<T>(volume, *impl_, shaded); });
+    impl_->tracer = visit_dtype(volume.dtype(),
+                                [&]<class T>(T*) { return scalar_tracer<T>(volume, *impl_, gradient_work); });
 }
 
 Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings settings)

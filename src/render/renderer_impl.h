@@ -30,6 +30,7 @@ struct Renderer::Impl {
     simd::FlatFunction flat_sigma, flat_color;
     simd::BatchSource batch;  // batch.data == nullptr: no SIMD
     ShadeSetup shade;
+    Volume gradients;  // precomputed node gradients (GradientSource::precomputed)
     Tracer tracer;
 
     /// The macrocells to skip, or nullptr when skipping is off or useless.
@@ -83,10 +84,10 @@ struct Renderer::Impl {
     }
 };
 
-/// The tracer of a scalar volume of sample type T (shaded: the
-/// emission–absorption model with gradient shading).
+/// The tracer of a scalar volume of sample type T (gradient_work: lighting
+/// and/or gradient opacity, im.shade says which).
 template <class T>
-Tracer scalar_tracer(const Volume& volume, const Renderer::Impl& im, bool shaded);
+Tracer scalar_tracer(const Volume& volume, const Renderer::Impl& im, bool gradient_work);
 /// The tracer of pre-classified density (D) and color (C) grids.
 template <class D, class C>
 Tracer grid_tracer(const Volume& density, const Volume& color, const Renderer::Impl& im);

@@ -16,15 +16,22 @@
 
 namespace fathom {
 
+/// Per-sample work on the gradient ∇v: Blinn–Phong lighting and/or the
+/// transfer function's gradient opacity.
 struct ShadeSetup {
     double ka = 0, kd = 0, ks = 0, p = 1;
     std::vector<Light> lights;  // unit directions; empty: a head light
     Mat3 world_to_index, index_to_world;
+    bool light = true;                     // false: gradient opacity only
+    const Classifier* modulate = nullptr;  // gradient opacity f(|∇v|), or nullptr
+    const Volume* gradients = nullptr;     // precomputed node gradients (3 × float32), or nullptr
 };
 
-/// g' = g·diffuse + σ·specular, per channel.
+/// g' = (g·diffuse + σ·specular)·opacity and σ' = σ·opacity, per channel;
+/// opacity is the gradient-opacity factor (1 without one).
 struct ShadeFactors {
-    Rgb diffuse, specular;
+    Rgb diffuse{1, 1, 1}, specular{0, 0, 0};
+    double opacity = 1;
 };
 
 /// Half the step of the central differences, in voxels.
@@ -78,24 +85,44 @@ inline ShadeFactors shade_factors(const ShadeSetup& s, const Vec3& grad, const V
     return f;
 }
 
-/// A scalar volume classified by a transfer function and shaded: the ray's
-/// direction is set per ray (set_ray) for the head light and highlights.
+/// Node gradients in world units (3 float32 components per node): central
+/// differences of the nodes along each lattice axis (one-sided at the
+/// border), then the chain rule through the world-to-index matrix, as
+/// world_gradient does for the trilinear field. Built with `threads` threads.
+Volume node_gradients(const Volume& v, const Mat3& world_to_index, int threads);
+
+/// A scalar volume classified by a transfer function, with per-sample
+/// gradient work: lighting (the ray's direction is set per ray by set_ray
+/// for the head light and highlights) and/or gradient opacity.
 template <class T>
 struct ShadedScalarMedium : ScalarMedium<T> {
     static constexpr bool kShaded = true;
     const ShadeSetup* setup = nullptr;
+    GridSampler<float> grads;  // setup->gradients, when there is one
     Vec3 view{0, 0, 1};
 
     void set_ray(const RaySpan& sp) {
         const Vec3 d = setup->index_to_world * sp.dp;
         view = d * (-1.0 / length(d));
     }
+    [[nodiscard]] Vec3 gradient(const Vec3& p) const {
+        if (setup->gradients != nullptr) {
+            const auto cell = grads.cell(p);
+            return {grads.interpolate(cell, 0), grads.interpolate(cell, 1), grads.interpolate(cell, 2)};
+        }
+        return world_gradient(this->grid, p, setup->world_to_index);
+    }
     [[nodiscard]] ShadeFactors factors(const Vec3& p) const {
-        return shade_factors(*setup, world_gradient(this->grid, p, setup->world_to_index), view);
+        const Vec3 g = gradient(p);
+        ShadeFactors f = setup->light ? shade_factors(*setup, g, view) : ShadeFactors{};
+        if (setup->modulate != nullptr) f.opacity = setup->modulate->gradient_factor(length(g));
+        return f;
     }
     void shade(const Vec3& p, MediumSample& m) const {
         const ShadeFactors f = factors(p);
-        for (int c = 0; c < 3; ++c) m.source[c] = m.source[c] * f.diffuse[c] + m.sigma * f.specular[c];
+        for (int c = 0; c < 3; ++c)
+            m.source[c] = (m.source[c] * f.diffuse[c] + m.sigma * f.specular[c]) * f.opacity;
+        m.sigma *= f.opacity;
     }
     [[nodiscard]] MediumSample at(const Vec3& p) const {
         MediumSample m = ScalarMedium<T>::at(p);

@@ -120,12 +120,20 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
 }  // namespace detail
 
 template <class T>
-Tracer scalar_tracer(const Volume& volume, const Renderer::Impl& im, bool shaded) {
+Tracer scalar_tracer(const Volume& volume, const Renderer::Impl& im, bool gradient_work) {
     ScalarMedium<T> med{GridSampler<T>(volume), &im.tf};
-    if (shaded) {
+    if (gradient_work) {  // the optical models only
         ShadedScalarMedium<T> sm{med};
         sm.setup = &im.shade;
-        return detail::integrator_tracer<Model::emission_absorption>(sm, im);
+        if (im.shade.gradients != nullptr) sm.grads = GridSampler<float>(*im.shade.gradients);
+        switch (im.s.model) {
+            case Model::absorption:
+                return detail::integrator_tracer<Model::absorption>(sm, im);
+            case Model::emission:
+                return detail::integrator_tracer<Model::emission>(sm, im);
+            default:
+                return detail::integrator_tracer<Model::emission_absorption>(sm, im);
+        }
     }
     return detail::make_tracer(med, im);
 }
