@@ -5,6 +5,7 @@ packages=(
   build-essential cmake ninja-build pkg-config
   zlib1g-dev libpng-dev libopenexr-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
   libnifti2-dev libniftiio-dev libgdcm-dev libopenvdb-dev
+  libavformat-dev libavcodec-dev libswscale-dev
   libgtest-dev libbenchmark-dev libhwy-dev
 )
 missing=()

@@ -10,6 +10,7 @@
 
 #include "fathom/io.h"
 #include "fathom/scene.h"
+#include "fathom/video.h"
 
 #include "test_util.h"
 
@@ -320,6 +321,16 @@ TEST(Cli, OrbitFramesWriteATurntableAndItsTransforms) {
     EXPECT_NE(fathom::read_pfm(d / "f_000.pfm").rgba, fathom::read_pfm(d / "f_001.pfm").rgba);
     EXPECT_EQ(fathom_cli("render " + scene + " --transforms t.json -o x.png", d).status, 2);
     EXPECT_EQ(fathom_cli("render " + scene + " --orbit-frames -2 -o x.png", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " --video v.mp4 -o x.png", d).status, 2);
+    EXPECT_EQ(fathom_cli("render " + scene + " --orbit-frames 2 --video v.avi -o x.png", d).status, 2);
+    if (fathom::video_supported()) {
+        const CliRun v = fathom_cli("render " + scene + " --orbit-frames 3 --video " +
+                                        (d / "v.gif").string() + " -o " + (d / "g.png").string(),
+                                    d);
+        ASSERT_EQ(v.status, 0) << v.err;
+        EXPECT_GT(fs::file_size(d / "v.gif"), 100u);
+        EXPECT_TRUE(fs::exists(d / "g_002.png"));
+    }
 }
 
 TEST(Cli, DepthOutputs) {
@@ -347,4 +358,15 @@ TEST(Cli, DepthOutputs) {
     EXPECT_GT(finite, 100);
     EXPECT_GT(misses, 0);
     EXPECT_EQ(fathom_cli("render " + scene + " -o x.png --depth-out d.png", d).status, 2);
+    // --depth-channels: the same depths inside the EXR image.
+    const CliRun e = fathom_cli("render " + scene + " -o " + (d / "c.exr").string() + " --depth-channels", d);
+    ASSERT_EQ(e.status, 0) << e.err;
+    const fathom::Image c = fathom::read_exr(d / "c.exr");
+    ASSERT_EQ(c.depth.size(), static_cast<std::size_t>(depth.width * depth.height));
+    for (int y = 0; y < depth.height; y += 7)
+        for (int x = 0; x < depth.width; x += 7) {
+            const float a = depth.pixel(x, y)[0], b = c.depth[static_cast<std::size_t>(y * depth.width + x)];
+            EXPECT_TRUE(a == b || (std::isinf(a) && std::isinf(b))) << x << "," << y;
+        }
+    EXPECT_EQ(fathom_cli("render " + scene + " -o x.png --depth-channels", d).status, 2);
 }

@@ -1,11 +1,14 @@
 // Depth outputs: the expected termination depth and the first hit.
 #include <cmath>
+#include <cstring>
 
 #include <gtest/gtest.h>
 
+#include "fathom/io.h"
 #include "fathom/render.h"
 
 #include "synthetic.h"
+#include "test_util.h"
 
 using namespace fathom;
 using fathom::test::extinction_tf;
@@ -79,4 +82,36 @@ TEST(Depth, AnOpaqueIsosurfaceHasItsHitAsExpectedDepth) {
     const RayResult r = Renderer(box(), extinction_tf({{0.0, 1.0}}, {1, 1, 1}), s).trace(kRay);
     EXPECT_NEAR(r.first_hit, 8.5, 1e-4);
     EXPECT_DOUBLE_EQ(r.depth, r.first_hit);
+}
+
+TEST(Depth, ExrCarriesTheDepthsAsExtraChannels) {
+    const TransferFunction tf = extinction_tf({{0.0, 0.0}, {8.0, 0.0}, {9.0, 0.5}}, {1, 1, 1});
+    RenderSettings s = depth_settings(IntegratorKind::alpha);
+    s.width = s.height = 8;
+    s.step = 0.5;
+    const Bounds b = volume_bounds(box());
+    const Image img = Renderer(box(), tf, s).render(Camera::orbit(20, 10, 3, b.center, b.radius));
+    fathom::test::TempDir dir;
+    write_image(dir / "d.exr", img);
+    const Image back = read_exr(dir / "d.exr");
+    EXPECT_EQ(back.rgba, img.rgba);
+    ASSERT_EQ(back.depth.size(), img.depth.size());
+    ASSERT_EQ(back.first_hit.size(), img.first_hit.size());
+    bool some_inf = false, some_finite = false;
+    for (std::size_t i = 0; i < img.depth.size(); ++i) {
+        // Bit for bit, infinities (misses) included.
+        EXPECT_EQ(std::memcmp(&back.depth[i], &img.depth[i], sizeof(float)), 0) << i;
+        EXPECT_EQ(std::memcmp(&back.first_hit[i], &img.first_hit[i], sizeof(float)), 0) << i;
+        some_inf = some_inf || std::isinf(img.depth[i]);
+        some_finite = some_finite || std::isfinite(img.depth[i]);
+    }
+    EXPECT_TRUE(some_inf && some_finite);
+    // Without depth outputs there are no such channels.
+    Image plain = img;
+    plain.depth.clear();
+    plain.first_hit.clear();
+    write_image(dir / "p.exr", plain);
+    const Image p = read_exr(dir / "p.exr");
+    EXPECT_TRUE(p.depth.empty());
+    EXPECT_TRUE(p.first_hit.empty());
 }

@@ -16,6 +16,7 @@
 #include "fathom/error.h"
 #include "fathom/io.h"
 #include "fathom/scene.h"
+#include "fathom/video.h"
 
 #include "commands.h"
 #include "scene_args.h"
@@ -32,6 +33,9 @@ struct RenderArgs {
     int orbit_frames = 0;
     std::string transforms;
     std::string depth_out, first_hit_out;
+    bool depth_channels = false;
+    std::string video;
+    int fps = 24;
 };
 
 /// One float per pixel as a gray image (the value in R, G and B).
@@ -116,12 +120,23 @@ void run_render(const RenderArgs& a) {
         throw UsageError("--orbit-frames must be in 0..100000");
     if (!a.transforms.empty() && a.orbit_frames == 0)
         throw UsageError("--transforms goes with --orbit-frames");
+    if (!a.video.empty()) {
+        if (a.orbit_frames == 0) throw UsageError("--video goes with --orbit-frames");
+        std::string vext = fs::path(a.video).extension().string();
+        std::transform(vext.begin(), vext.end(), vext.begin(),
+                       [](unsigned char c) { return std::tolower(c); });
+        if (vext != ".mp4" && vext != ".gif")
+            throw UsageError("--video " + a.video + ": the video must end in .mp4 or .gif");
+        if (a.fps < 1 || a.fps > 240) throw UsageError("--fps must be in 1..240");
+    }
     if (!a.depth_out.empty()) check_float_output("--depth-out", a.depth_out);
     if (!a.first_hit_out.empty()) check_float_output("--first-hit-out", a.first_hit_out);
     if ((!a.depth_out.empty() || !a.first_hit_out.empty()) && a.orbit_frames > 0)
         throw UsageError("--depth-out and --first-hit-out go with single images, not --orbit-frames");
     Scene scene = a.scene.load("render");
-    scene.settings.depth_outputs = !a.depth_out.empty() || !a.first_hit_out.empty();
+    if (a.depth_channels && ext != ".exr")
+        throw UsageError("--depth-channels needs an .exr output (-o ...exr)");
+    scene.settings.depth_outputs = !a.depth_out.empty() || !a.first_hit_out.empty() || a.depth_channels;
     if (!a.transforms.empty() && scene.camera.projection != Projection::perspective)
         throw UsageError("--transforms needs a perspective camera (NeRF sets have a field of view)");
     const Renderer renderer = scene.renderer();
@@ -137,6 +152,9 @@ void run_render(const RenderArgs& a) {
     const Vec3 center = volume_bounds(scene.volume).center;
     std::vector<fs::path> files;
     std::vector<Camera> cams;
+    std::unique_ptr<VideoWriter> video;
+    if (!a.video.empty())
+        video = std::make_unique<VideoWriter>(a.video, scene.settings.width, scene.settings.height, a.fps);
     for (int f = 0; f < a.orbit_frames; ++f) {
         const Camera cam = scene.camera.turned(center, 360.0 * f / a.orbit_frames);
         Progress progress(!a.quiet);
@@ -144,7 +162,9 @@ void run_render(const RenderArgs& a) {
         files.push_back(frame_path(a.output, f));
         cams.push_back(cam);
         write_image(files.back(), image, scene.settings.transparent);
+        if (video) video->add(image);
     }
+    if (video) video->finish();
     if (!a.transforms.empty()) write_transforms(a.transforms, scene, files, cams);
 }
 
@@ -164,9 +184,16 @@ void add_render_command(CLI::App& app) {
     cmd->add_option(
         "--first-hit-out", a->first_hit_out,
         "Also write the first-hit depth per pixel (first sample with opacity, or the first isosurface)");
+    cmd->add_flag("--depth-channels", a->depth_channels,
+                  "With an .exr output: add the expected depth (channel Z) and the first-hit depth "
+                  "(FirstHit.Z) to the image");
     cmd->add_option(
         "--orbit-frames", a->orbit_frames,
         "Render N frames turning 360/N degrees each about the volume's vertical axis: OUT_000.ext ...");
+    cmd->add_option("--video", a->video,
+                    "With --orbit-frames: also encode the frames as a video, .mp4 (H.264) or .gif (needs a "
+                    "build with FFmpeg's libraries)");
+    cmd->add_option("--fps", a->fps, "Frame rate of --video (default 24)");
     cmd->add_option("--transforms", a->transforms,
                     "With --orbit-frames: also write the frames' cameras as a NeRF transforms.json");
     cmd->callback([a] { run_render(*a); });

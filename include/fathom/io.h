@@ -123,7 +123,9 @@ Volume read_volume(const std::filesystem::path& path, const ReadOptions& options
 /// read_nrrd gives the same bits back. Atomic like write_image.
 void write_nrrd(const std::filesystem::path& path, const Volume& volume, bool gzip = true);
 
-/// Image files by extension: .pfm, .png, .exr (SPEC §6). Written to a
+/// Image files by extension: .pfm, .png, .exr (SPEC §6). An EXR also gets
+/// the image's depth outputs, when it has them, as the channels "Z"
+/// (expected depth) and "FirstHit.Z". Written to a
 /// temporary name beside the target and renamed, so a failure leaves no
 /// partial output. For PNG, png_alpha selects RGBA (A = α) over RGB.
 void write_image(const std::filesystem::path& path, const Image& image, bool png_alpha = false);
@@ -139,7 +141,8 @@ Image read_png(const std::filesystem::path& path);
 
 /// Reads the R, G, B and A channels of an OpenEXR file (any pixel type,
 /// returned as float) over its data window; a missing R, G or B reads 0, a
-/// missing A reads 1. A file with none of R, G, B is an error.
+/// missing A reads 1. A file with none of R, G, B is an error. Channels "Z"
+/// and "FirstHit.Z", when present, fill Image::depth and Image::first_hit.
 Image read_exr(const std::filesystem::path& path);
 
 /// Writes text to a file atomically (temporary name, then rename).

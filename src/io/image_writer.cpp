@@ -32,6 +32,7 @@
 #include "fathom/io.h"
 
 #include "io/atomic_file.h"
+#include "io/srgb.h"
 
 namespace fathom {
 namespace {
@@ -184,24 +185,13 @@ Image pfm_to_image(const PfmHeader& h, const std::vector<unsigned char>& data) {
 
 // ---------------------------------------------------------------- PNG
 
-/// Clamps to [0, 1]; NaN → 0.
-double clamp01(float v) {
-    return v > 0.0f ? std::min(static_cast<double>(v), 1.0) : 0.0;
-}
-
-/// IEC 61966-2-1 transfer function, linear → encoded, v in [0, 1].
-double srgb_encode(double v) {
-    return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
-}
+using io::clamp01;
+using io::srgb_encode;
+using io::to_u8;
 
 /// IEC 61966-2-1 transfer function, encoded → linear, v in [0, 1].
 float srgb_decode(double v) {
     return static_cast<float>(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
-}
-
-/// Rounds to the nearest code (halves up, like ⌊255·v + 0.5⌋), v in [0, 1].
-std::uint8_t to_u8(double v01) {
-    return static_cast<std::uint8_t>(std::lround(v01 * 255.0));
 }
 
 std::vector<std::uint8_t> png_pixels(const Image& image, int channels) {
@@ -353,6 +343,8 @@ struct FileCloser {
 
 constexpr std::array<const char*, 4> kExrChannels = {"R", "G", "B", "A"};
 constexpr std::size_t kExrXStride = 4 * sizeof(float);
+constexpr const char* kExrDepth = "Z";
+constexpr const char* kExrFirstHit = "FirstHit.Z";
 
 void write_exr_file(const char* name, const Image& image) {
     Imf::Header header(image.width, image.height);
@@ -364,6 +356,18 @@ void write_exr_file(const char* name, const Image& image) {
         frame.insert(kExrChannels[c], Imf::Slice::Make(Imf::FLOAT, image.rgba.data() + c, Imath::V2i(0, 0),
                                                        image.width, image.height, kExrXStride, y_stride));
     }
+    // Depth outputs as extra channels: "Z" (OpenEXR's name for depth) the
+    // expected termination depth, "FirstHit.Z" the first-hit depth.
+    const auto pixels = static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height);
+    auto extra = [&](const char* channel, const std::vector<float>& plane) {
+        if (plane.size() != pixels) return;
+        header.channels().insert(channel, Imf::Channel(Imf::FLOAT));
+        frame.insert(channel,
+                     Imf::Slice::Make(Imf::FLOAT, plane.data(), Imath::V2i(0, 0), image.width, image.height,
+                                      sizeof(float), sizeof(float) * static_cast<std::size_t>(image.width)));
+    };
+    extra(kExrDepth, image.depth);
+    extra(kExrFirstHit, image.first_hit);
     Imf::OutputFile out(name, header);
     out.setFrameBuffer(frame);
     out.writePixels(image.height);
@@ -395,6 +399,14 @@ Image read_exr_file(const fs::path& path) {
     for (std::size_t c = 0; c < kExrChannels.size(); ++c)
         frame.insert(kExrChannels[c], Imf::Slice::Make(Imf::FLOAT, image.rgba.data() + c, window, kExrXStride,
                                                        y_stride, 1, 1, c == 3 ? 1.0 : 0.0));
+    const auto pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    for (auto [channel, plane] :
+         {std::pair{kExrDepth, &image.depth}, std::pair{kExrFirstHit, &image.first_hit}}) {
+        if (!channels.findChannel(channel)) continue;
+        plane->assign(pixels, 0.0f);
+        frame.insert(channel, Imf::Slice::Make(Imf::FLOAT, plane->data(), window, sizeof(float),
+                                               sizeof(float) * static_cast<std::size_t>(width)));
+    }
     file.setFrameBuffer(frame);
     file.readPixels(window.min.y, window.max.y);
     return image;

@@ -98,7 +98,7 @@ template <class T>
 struct ShadedScalarMedium : ScalarMedium<T> {
     static constexpr bool kShaded = true;
     const ShadeSetup* setup = nullptr;
-    GridSampler<float> grads;  // setup->gradients, when there is one
+    GridSampler<float> grads{};  // setup->gradients, when there is one
     Vec3 view{0, 0, 1};
 
     void set_ray(const RaySpan& sp) {
