@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets with clang and runs each for SECONDS (default
+# 60) on a seed corpus made from the shared real files (../shared/data) and
+# the test suite's small files. Findings are written to build-fuzz/findings/.
+#   tests/fuzz/run.sh [SECONDS] [READER...]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+seconds=${1:-60}
+shift || true
+readers=("$@")
+[ ${#readers[@]} -eq 0 ] && readers=(nrrd metaimage slc vtk vti nifti nifti_gz dicom vdb raw)
+CXX=${CXX:-clang++} cmake -S tests/fuzz -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+ninja -C build-fuzz $(printf 'fuzz_%s ' "${readers[@]}")
+data=../shared/data
+corpus=build-fuzz/corpus
+mkdir -p build-fuzz/findings
+seed() {  # seed READER FILE...: small files (at most 1 MiB) go in whole, larger ones as their first 64 KiB
+    local r=$1
+    shift
+    mkdir -p "$corpus/$r"
+    for f in "$@"; do
+        [ -f "$f" ] || continue
+        head -c 1048576 "$f" >"$corpus/$r/$(basename "$f")"
+    done
+}
+seed nrrd "$data"/sim_and_small_vtkdata/headsq/quarter.nhdr
+seed slc "$data"/sim_and_small_vtkdata/neghip.slc
+seed vtk "$data"/sim_and_small_vtkdata/ironProt.vtk
+seed vti "$data"/sim_and_small_vtkdata/hydrogen.vti
+seed nifti_gz "$data"/mri_colin27_ch2better/*.nii.gz
+seed vdb "$data"/vdb_wdas_cloud/*.vdb
+seed dicom "$data"/sim_and_small_vtkdata/dicom_stack_cptac/*
+mkdir -p "$corpus/nifti"
+for f in "$data"/mri_colin27_ch2better/*.nii.gz; do
+    [ -f "$f" ] && { gzip -dc "$f" | head -c 1048576 >"$corpus/nifti/$(basename "$f" .gz)" || true; }
+done
+for r in metaimage raw; do mkdir -p "$corpus/$r"; done
+for r in "${readers[@]}"; do
+    echo "== fuzz_$r for ${seconds}s"
+    ./build-fuzz/fuzz_"$r" -max_total_time="$seconds" -rss_limit_mb=4096 -max_len=1048576 \
+        -artifact_prefix=build-fuzz/findings/"$r"- "$corpus/$r"
+done
