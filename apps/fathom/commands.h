@@ -14,6 +14,7 @@ void add_render_command(CLI::App& app);
 void add_info_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
 void add_tf_table_command(CLI::App& app);
+void add_tf_convert_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 
 }  // namespace fathom::cli

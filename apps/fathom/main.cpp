@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
     fathom::cli::add_info_command(app);
     fathom::cli::add_convert_command(app);
     fathom::cli::add_tf_table_command(app);
+    fathom::cli::add_tf_convert_command(app);
     fathom::cli::add_bench_command(app);
     try {
         app.parse(argc, argv);

@@ -1,15 +1,29 @@
-// Built-in transfer-function presets. Each is written over the normalised
-// scalar range [0, 1] and scaled to the value range of the volume it is
-// applied to (as ParaView rescales a colormap to the data range), so one
-// preset serves a uint8 CT, a 12-bit CT and a float field alike. The
-// positions were chosen by looking at the histograms and renders of the CT
-// and MR scans fathom is tested on (docs/presets.md).
+// Built-in transfer-function presets. fathom's own (lower-case names) are
+// written over the normalised scalar range [0, 1] and scaled to the value
+// range of the volume they are applied to (as ParaView rescales a colormap to
+// the data range), so one preset serves a uint8 CT, a 12-bit CT and a float
+// field alike. The positions were chosen by looking at the histograms and
+// renders of the CT and MR scans fathom is tested on (docs/presets.md).
+//
+// 3D Slicer's volume-rendering presets (CT-Bone, MR-Default, ...) are in
+// absolute scalar units (Hounsfield for CT) and are never rescaled. Their
+// fathom-tf/1 files, presets/slicer/*.json (converted from Slicer's
+// presets.xml: presets/slicer/NOTICE.md), are compiled into the library by
+// CMakeLists.txt, so the binary does not need the source tree.
 #include <algorithm>
 
 #include "fathom/error.h"
 #include "fathom/transfer_function.h"
 
+#include "io/io_util.h"
+
 namespace fathom {
+namespace embedded {
+// Generated from presets/slicer/*.json: {name, fathom-tf/1 JSON text},
+// sorted by name, ending with {nullptr, nullptr}.
+extern const char* const kSlicerPresets[][2];
+}  // namespace embedded
+
 namespace {
 
 struct PresetDef {
@@ -63,6 +77,7 @@ const std::vector<PresetDef>& presets() {
 std::vector<std::string> TransferFunction::preset_names() {
     std::vector<std::string> names;
     for (const auto& p : presets()) names.emplace_back(p.name);
+    for (const auto* p = embedded::kSlicerPresets; (*p)[0] != nullptr; ++p) names.emplace_back((*p)[0]);
     return names;
 }
 
@@ -70,9 +85,16 @@ TransferFunction TransferFunction::preset(std::string_view name, std::array<doub
     const auto& all = presets();
     const auto it = std::find_if(all.begin(), all.end(), [&](const PresetDef& p) { return p.name == name; });
     if (it == all.end()) {
-        std::string list;
-        for (const auto& n : preset_names()) list += (list.empty() ? "" : ", ") + n;
-        throw Error("preset '" + std::string(name) + "'", "unknown preset (known: " + list + ")");
+        // A Slicer preset: absolute units, not scaled to the value range.
+        for (const auto* p = embedded::kSlicerPresets; (*p)[0] != nullptr; ++p)
+            if (name == (*p)[0]) return from_json_text((*p)[1], "preset '" + std::string(name) + "'");
+        std::string list, hint;
+        for (const auto& n : preset_names()) {
+            list += (list.empty() ? "" : ", ") + n;
+            if (hint.empty() && io::iequals(n, name))
+                hint = " (names are case-sensitive: did you mean '" + n + "'?)";
+        }
+        throw Error("preset '" + std::string(name) + "'", "unknown preset" + hint + " (known: " + list + ")");
     }
     const double lo = value_range[0];
     const double span = value_range[1] > lo ? value_range[1] - lo : 1.0;

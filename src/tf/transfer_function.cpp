@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fathom/error.h"
+#include "fathom/tf_interchange.h"
 
 #include "tf/tf_json.h"
 
@@ -127,9 +128,9 @@ std::vector<std::vector<double>> read_points(const json& j, const std::string& k
 
 TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subject) {
     if (!j.is_object()) throw Error(subject, "a transfer function must be a JSON object");
-    static const std::array<std::string, 8> kKeys{"format",     "name",       "color",
-                                                  "emission",   "opacity",    "extinction",
-                                                  "opacity_unit_distance", "gradient_opacity"};
+    static const std::array<std::string, 8> kKeys{
+        "format",          "name", "color", "emission", "opacity", "extinction", "opacity_unit_distance",
+        "gradient_opacity"};
     for (const auto& [key, value] : j.items())
         if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
             throw Error(subject, "unknown key '" + key + "' in transfer function");
@@ -175,10 +176,11 @@ TransferFunction tf_from_json(const nlohmann::json& j, const std::string& subjec
     if (j.contains("gradient_opacity"))
         for (const auto& p : read_points(j["gradient_opacity"], "gradient_opacity", 2, subject)) {
             if (p[0] < 0)
-                throw Error(subject, "'gradient_opacity' has a negative gradient magnitude " + std::to_string(p[0]));
+                throw Error(subject,
+                            "'gradient_opacity' has a negative gradient magnitude " + std::to_string(p[0]));
             if (p[1] < 0 || p[1] > 1)
-                throw Error(subject, "'gradient_opacity' factor " + std::to_string(p[1]) + " at |grad| = " +
-                                         std::to_string(p[0]) + " is outside [0, 1]");
+                throw Error(subject, "'gradient_opacity' factor " + std::to_string(p[1]) +
+                                         " at |grad| = " + std::to_string(p[0]) + " is outside [0, 1]");
             tf.gradient_opacity_points.push_back({p[0], p[1]});
         }
     return tf;
@@ -225,7 +227,9 @@ TransferFunction TransferFunction::from_json_text(std::string_view text, const s
 }
 
 TransferFunction TransferFunction::from_file(const std::filesystem::path& path) {
-    return from_json_text(read_text_file(path), path.string());
+    // fathom-tf/1, a 3D Slicer presets file or a ParaView colormap, found
+    // from the content (src/tf/tf_interchange.cpp).
+    return read_transfer_function(path);
 }
 
 std::string TransferFunction::to_json() const {

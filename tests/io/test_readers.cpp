@@ -669,7 +669,7 @@ TEST(ReaderDetect, ClearErrors) {
     write_file(dir / "plain.raw", garbage);
     expect_error([&] { read_volume(dir / "plain.raw"); }, dir / "plain.raw", {"NAME_XxYxZ_TYPE.raw"});
     expect_error([&] { read_volume(dir / "absent.nrrd"); }, dir / "absent.nrrd", {"does not exist"});
-    expect_error([&] { read_volume(dir.path()); }, dir.path(), {"DICOM series are not supported yet"});
+    expect_error([&] { read_volume(dir.path()); }, dir.path(), {"no DICOM files in folder"});
 }
 
 // ================================================================ shared data
