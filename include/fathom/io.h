@@ -102,9 +102,11 @@ struct VdbGrid {
 
 /// The grids of an OpenVDB file.
 std::vector<VdbGrid> list_vdb_grids(const std::filesystem::path& path);
-/// A float grid of an OpenVDB file (.vdb) as a dense float32 volume over its
-/// active bounding box (inactive voxels read the background value); the
-/// grid's voxel size and translation give the placement.
+/// A float (or double) grid of an OpenVDB file (.vdb) as a dense float32
+/// volume over its active bounding box (each voxel reads the grid's value
+/// there; outside allocated nodes that is the background); the grid's
+/// linear index-to-world transform (voxel size, rotation, translation)
+/// gives the placement.
 Volume read_vdb(const std::filesystem::path& path, const std::string& grid = "density");
 
 /// Choices for files that hold several volumes.
