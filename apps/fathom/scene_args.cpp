@@ -132,10 +132,13 @@ void SceneArgs::add_to(CLI::App* cmd) {
     cmd->add_option("--series", this->series,
                     "DICOM SeriesInstanceUID when the --volume folder holds several series");
     cmd->add_option("--grid", this->grid, "OpenVDB grid name for a --volume .vdb file (default density)");
-    cmd->add_option("--tf", this->tf, "Transfer function file (fathom-tf/1 JSON), with --volume");
-    cmd->add_option(
-        "--preset", this->preset,
-        "Transfer function preset, with --volume: ct-bone, ct-skin, ct-soft-tissue, mr-default, grayscale");
+    cmd->add_option("--tf", this->tf,
+                    "Transfer function file (fathom-tf/1, 3D Slicer presets.xml or ParaView colormap JSON), "
+                    "with --volume");
+    cmd->add_option("--preset", this->preset,
+                    "Transfer function preset, with --volume: ct-bone, ct-skin, ct-soft-tissue, mr-default, "
+                    "grayscale, or a "
+                    "3D Slicer preset (CT-Bone, MR-Default, ...; docs/presets.md)");
     cmd->add_option(
         "--orbit", this->orbit,
         "Orbit camera AZ,EL[,DIST] in degrees (distance in half box diagonals, default 3), with --volume");

@@ -99,7 +99,8 @@ void add_tf_table_command(CLI::App& app) {
     auto* cmd = app.add_subcommand(
         "tf-table", "Write the pre-integration table of a transfer function as an image or CSV");
     auto a = std::make_shared<TableArgs>();
-    cmd->add_option("tf", a->tf, "Transfer function (fathom-tf/1 JSON)");
+    cmd->add_option("tf", a->tf,
+                    "Transfer function file (fathom-tf/1, 3D Slicer presets.xml or ParaView colormap JSON)");
     cmd->add_option("--preset", a->preset, "A preset instead of a file (scaled to --range, default 0,1)");
     cmd->add_option("-o,--output", a->output, "Output: .png/.pfm/.exr (opacity | color picture) or .csv")
         ->required();

@@ -98,8 +98,9 @@ struct TransferFunction {
     /// Parses fathom-tf/1 JSON text; errors name `subject` (the file).
     static TransferFunction from_json_text(std::string_view text, const std::string& subject);
     static TransferFunction from_file(const std::filesystem::path& path);
-    /// A named preset, scaled to the value range [lo, hi] of the volume it
-    /// is applied to (presets are written over the normalised range [0, 1]).
+    /// A named preset. fathom's own (lower-case names) are written over [0, 1] and
+    /// scaled to the value range [lo, hi] of the volume; 3D Slicer's (CT-Bone, ...)
+    /// are in absolute units and ignore value_range. Names are case-sensitive.
     static TransferFunction preset(std::string_view name, std::array<double, 2> value_range);
     static std::vector<std::string> preset_names();
 
