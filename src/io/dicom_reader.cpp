@@ -1,14 +1,17 @@
 // DICOM series reader (GDCM 3, Debian's libgdcm-dev).
 //
-// Two passes over the files, each file parsed at most twice:
-//   1. headers: gdcm::Reader::ReadSelectedTags reads only the tags below (it
-//      stops before the pixel data), so listing a folder never decodes pixels.
-//      Files are grouped by SeriesInstanceUID; files that are not DICOM (no
-//      "DICM" at byte 128 and no plausible first tag) are skipped, and so are
-//      DICOM files without an image (no Rows/Columns: DICOMDIR, reports).
+// Two passes over the files:
+//   1. headers: each file's element structure is walked first (lengths inside
+//      the file, sequences closed: GDCM as Debian builds it aborts on an
+//      assertion for most truncated headers), then gdcm::Reader::
+//      ReadSelectedTags reads only the tags below, stopping before the pixel
+//      data, so listing a folder never decodes pixels. Files are grouped by
+//      SeriesInstanceUID; files that are not DICOM (no "DICM" at byte 128 and
+//      no plausible first tag) are skipped, and so are DICOM files without an
+//      image (no Rows/Columns: DICOMDIR, reports).
 //   2. pixels: gdcm::ImageReader decodes each file of the chosen series
-//      (every transfer syntax GDCM supports: raw, RLE, JPEG, JPEG-LS,
-//      JPEG 2000), straight into its sorted slot of the volume.
+//      (every transfer syntax GDCM supports: raw, deflate, RLE, JPEG, JPEG-LS,
+//      JPEG 2000) into its sorted slot of the volume, on a few threads.
 //
 // Geometry (SPEC §2, LPS = DICOM patient coordinates): ImageOrientationPatient
 // gives the row direction r (along a row: i) and the column direction c

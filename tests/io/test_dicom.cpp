@@ -81,19 +81,20 @@ std::string padded(std::string s, std::size_t n) {
 
 // ---------------------------------------------------------------- a small DICOM writer
 
-/// Data set elements in explicit VR little endian, kept in tag order.
+/// Data set elements in explicit VR little (or big) endian, kept in tag order.
 class Dcm {
 public:
+    explicit Dcm(bool big_endian = false) : big_(big_endian) {}
     Dcm& str(std::uint16_t g, std::uint16_t e, const std::string& vr, std::string v) {
         if (v.size() % 2 != 0) v.push_back(vr == "UI" ? '\0' : ' ');
         return raw(g, e, vr, v);
     }
-    Dcm& us(std::uint16_t g, std::uint16_t e, std::uint16_t v) { return raw(g, e, "US", le16(v)); }
+    Dcm& us(std::uint16_t g, std::uint16_t e, std::uint16_t v) { return raw(g, e, "US", u16(v)); }
     Dcm& seq(std::uint16_t g, std::uint16_t e, const std::vector<Dcm>& items) {
         std::string v;
         for (const auto& item : items) {
             const std::string body = item.body();
-            v += le16(0xfffe) + le16(0xe000) + le32(static_cast<std::uint32_t>(body.size())) + body;
+            v += u16(0xfffe) + u16(0xe000) + u32(static_cast<std::uint32_t>(body.size())) + body;
         }
         return raw(g, e, "SQ", v);
     }
@@ -114,7 +115,7 @@ public:
         meta.raw(0x0002, 0x0001, "OB", std::string("\0\1", 2));
         meta.str(0x0002, 0x0002, "UI", sop_class);
         meta.str(0x0002, 0x0003, "UI", "1.2.3.4.5.6.7");
-        meta.str(0x0002, 0x0010, "UI", "1.2.840.10008.1.2.1");
+        meta.str(0x0002, 0x0010, "UI", big_ ? "1.2.840.10008.1.2.2" : "1.2.840.10008.1.2.1");
         const std::string m = meta.body();
         Dcm length;
         length.raw(0x0002, 0x0000, "UL", le32(static_cast<std::uint32_t>(m.size())));
@@ -123,14 +124,25 @@ public:
 
 private:
     Dcm& raw(std::uint16_t g, std::uint16_t e, const std::string& vr, const std::string& v) {
-        std::string el = le16(g) + le16(e) + vr;
+        std::string el = u16(g) + u16(e) + vr;
         if (vr == "OB" || vr == "OW" || vr == "SQ" || vr == "UN" || vr == "UT")
-            el += le16(0) + le32(static_cast<std::uint32_t>(v.size()));
+            el += u16(0) + u32(static_cast<std::uint32_t>(v.size()));
         else
-            el += le16(static_cast<std::uint32_t>(v.size()));
+            el += u16(static_cast<std::uint32_t>(v.size()));
         elements_[(std::uint32_t{g} << 16) | e] = el + v;
         return *this;
     }
+    [[nodiscard]] std::string u16(std::uint32_t v) const {
+        std::string s = le16(v);
+        if (big_) std::swap(s[0], s[1]);
+        return s;
+    }
+    [[nodiscard]] std::string u32(std::uint32_t v) const {
+        std::string s = le32(v);
+        if (big_) std::reverse(s.begin(), s.end());
+        return s;
+    }
+    bool big_ = false;  // the file meta group is always little endian (a default Dcm)
     std::map<std::uint32_t, std::string> elements_;
 };
 
@@ -157,19 +169,23 @@ struct SliceSpec {
     int samples = 1;
     std::optional<double> slope, intercept;
     std::vector<std::int64_t> values;  // rows · columns (· frames), stored as bits_allocated
+    bool big_endian = false;           // explicit VR big endian transfer syntax
 };
 
-std::string pixel_bytes(const std::vector<std::int64_t>& values, int bits) {
+std::string pixel_bytes(const std::vector<std::int64_t>& values, int bits, bool big_endian) {
     std::string out;
     for (auto v : values) {
         const auto u = static_cast<std::uint64_t>(v);
-        for (int b = 0; b < bits / 8; ++b) out.push_back(static_cast<char>((u >> (8 * b)) & 0xff));
+        for (int b = 0; b < bits / 8; ++b) {
+            const int byte = big_endian ? bits / 8 - 1 - b : b;
+            out.push_back(static_cast<char>((u >> (8 * byte)) & 0xff));
+        }
     }
     return out;
 }
 
 Dcm image(const SliceSpec& s) {
-    Dcm d;
+    Dcm d(s.big_endian);
     d.str(0x0008, 0x0016, "UI", kMrClass)
         .str(0x0008, 0x0018, "UI", "1.2.3.4.5.6.7")
         .str(0x0008, 0x0060, "CS", "MR")
@@ -194,7 +210,7 @@ Dcm image(const SliceSpec& s) {
     const std::size_t n = static_cast<std::size_t>(s.rows * s.columns * s.samples);
     if (values.empty())
         for (std::size_t i = 0; i < n; ++i) values.push_back(static_cast<std::int64_t>(i));
-    d.pixels(pixel_bytes(values, s.bits_allocated));
+    d.pixels(pixel_bytes(values, s.bits_allocated, s.big_endian));
     return d;
 }
 
@@ -605,6 +621,29 @@ TEST(DicomSynthetic, StoredTypesKeptWithIdentityRescale) {
         EXPECT_EQ(v.value(3, 2, 0), static_cast<double>(c.value)) << c.bits << " bits";
         EXPECT_EQ(v.value(0, 0, 1), 1.0);
     }
+}
+
+TEST(DicomSynthetic, ExplicitBigEndian) {
+    TempDir dir;
+    SliceSpec base;
+    base.big_endian = true;
+    base.pixel_representation = 1;
+    base.spacing = "0.75\\0.5";
+    write_stack(dir.path(), 3, 2.5, -4, base);  // slice k holds 100·k + i
+    const Volume v = read_dicom(dir.path());
+    EXPECT_EQ(v.dims(), (std::array<std::int64_t, 3>{4, 3, 3}));
+    EXPECT_EQ(v.dtype(), DType::i16);
+    EXPECT_EQ(v.value(1, 0, 0), 1);
+    EXPECT_EQ(v.value(3, 2, 2), 211);
+    EXPECT_EQ(v.value(2, 1, 1), 106);
+    EXPECT_NEAR(v.spacing().x, 0.5, 1e-12);
+    EXPECT_NEAR(v.spacing().y, 0.75, 1e-12);
+    EXPECT_NEAR(v.spacing().z, 2.5, 1e-12);
+    EXPECT_EQ(v.origin(), (Vec3{-10, 20, -4}));
+    const auto series = list_dicom_series(dir.path());
+    ASSERT_EQ(series.size(), 1u);
+    EXPECT_EQ(series[0].rows, 3);
+    EXPECT_EQ(series[0].columns, 4);
 }
 
 TEST(DicomSynthetic, BitsAboveBitsStored) {
