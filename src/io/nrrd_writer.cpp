@@ -24,26 +24,11 @@ std::string number(double x) {
     return buf;
 }
 
+/// NRRD's type names are dtype_name's except for the two float types.
 std::string nrrd_type(DType t) {
-    switch (t) {
-        case DType::u8:
-            return "uint8";
-        case DType::i8:
-            return "int8";
-        case DType::u16:
-            return "uint16";
-        case DType::i16:
-            return "int16";
-        case DType::u32:
-            return "uint32";
-        case DType::i32:
-            return "int32";
-        case DType::f32:
-            return "float";
-        case DType::f64:
-            break;
-    }
-    return "double";
+    if (t == DType::f32) return "float";
+    if (t == DType::f64) return "double";
+    return std::string(dtype_name(t));
 }
 
 std::string header(const Volume& v, bool gzip) {
