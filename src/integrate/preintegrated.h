@@ -30,13 +30,18 @@ namespace fathom {
 namespace preint {
 
 /// The source on a piece as a quadratic in u ∈ [0, 1], per channel: g = a + b·u + c·u².
-struct Quadratic {
-    Rgb a{}, b{}, c{};
+/// S is double, or a dual number where derivatives are wanted (src/diff/).
+template <class S>
+struct QuadraticT {
+    std::array<S, 3> a{}, b{}, c{};
 };
+using Quadratic = QuadraticT<double>;
 
 /// Particle model: g = σ(u)·c(u) with σ and c linear.
-inline Quadratic particle_source(double s0, double s1, const Rgb& c0, const Rgb& c1) {
-    Quadratic q;
+template <class S>
+QuadraticT<S> particle_source(const S& s0, const S& s1, const std::array<S, 3>& c0,
+                              const std::array<S, 3>& c1) {
+    QuadraticT<S> q;
     for (int k = 0; k < 3; ++k) {
         q.a[k] = s0 * c0[k];
         q.b[k] = s0 * (c1[k] - c0[k]) + c0[k] * (s1 - s0);
@@ -46,8 +51,9 @@ inline Quadratic particle_source(double s0, double s1, const Rgb& c0, const Rgb&
 }
 
 /// Associated emission: g = q(u), linear.
-inline Quadratic emission_source(const Rgb& q0, const Rgb& q1) {
-    Quadratic q;
+template <class S>
+QuadraticT<S> emission_source(const std::array<S, 3>& q0, const std::array<S, 3>& q1) {
+    QuadraticT<S> q;
     for (int k = 0; k < 3; ++k) {
         q.a[k] = q0[k];
         q.b[k] = q1[k] - q0[k];
@@ -55,10 +61,12 @@ inline Quadratic emission_source(const Rgb& q0, const Rgb& q1) {
     return q;
 }
 
-struct PieceIntegral {
-    double depth = 0;  // τ = ∫ σ_a over the piece
-    Rgb radiance{};    // E = ∫ g·exp(−∫σ_a) over the piece (or ∫ g without self-attenuation)
+template <class S>
+struct PieceIntegralT {
+    S depth = 0;                  // τ = ∫ σ_a over the piece
+    std::array<S, 3> radiance{};  // E = ∫ g·exp(−∫σ_a) over the piece (or ∫ g without self-attenuation)
 };
+using PieceIntegral = PieceIntegralT<double>;
 
 /// One piece of world length `len`, σ_a linear from s0 to s1, source g.
 PieceIntegral integrate_piece(double len, double s0, double s1, const Quadratic& g, bool self_attenuation);

@@ -16,10 +16,6 @@
 
 namespace fathom {
 
-namespace {
-
-/// A per-pixel offset in [0, 1), a hash of (x, y, seed): deterministic and
-/// independent of the thread count (a 32-bit integer hash, "lowbias32").
 double jitter_offset(int x, int y, std::uint32_t seed) {
     std::uint32_t h = static_cast<std::uint32_t>(x) * 0x9E3779B1u ^
                       static_cast<std::uint32_t>(y) * 0x85EBCA77u ^ seed * 0xC2B2AE3Du;
@@ -36,6 +32,8 @@ void check_lattice(const Volume& v, const std::string& what) {
         if (d < 2) throw Error(what, "every dimension must be at least 2 samples to interpolate");
 }
 
+namespace {
+
 /// Macrocell edge (log2 cells): point samples are cheap to skip one by one,
 /// so finer macrocells pay; pre-integrated segments crossing a macrocell
 /// face cost two end samples, so coarser ones do (docs/performance.md).
@@ -43,7 +41,9 @@ int macrocell_shift(IntegratorKind k) {
     return k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;
 }
 
-void setup(Renderer::Impl& im, const Volume& lattice) {
+}  // namespace
+
+void setup_lattice(Renderer::Impl& im, const Volume& lattice) {
     im.s.validate();
     im.lattice = &lattice;
     im.world_to_index = lattice.axes().inverse();
@@ -52,8 +52,6 @@ void setup(Renderer::Impl& im, const Volume& lattice) {
     im.bg = im.s.background_radiance();
 }
 
-}  // namespace
-
 Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSettings settings)
     : impl_(std::make_unique<Impl>()) {
     impl_->s = settings;
@@ -61,7 +59,7 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
     if (volume.components() != 1)
         throw Error("volume",
                     "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
-    setup(*impl_, volume);
+    setup_lattice(*impl_, volume);
     impl_->tf = Classifier(tf, volume.smallest_spacing());
     if (impl_->s.skip_empty)
         impl_->empty_space = EmptySpace::for_scalar(volume, impl_->tf, impl_->s.model,
@@ -119,7 +117,7 @@ Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings se
         throw Error(
             "shading",
             "needs a scalar volume (its gradient gives the normals); pre-classified grids are not shaded");
-    setup(*impl_, density);
+    setup_lattice(*impl_, density);
     if (impl_->s.skip_empty)
         impl_->empty_space =
             EmptySpace::for_density(density, macrocell_shift(impl_->s.integrator), impl_->s.threads);

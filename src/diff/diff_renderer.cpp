@@ -1,0 +1,780 @@
+// The differentiable renderer (include/fathom/differentiable.h): one
+// front-to-back march per ray computes the forward result; the backward
+// march recomputes each segment with its derivatives and hands the adjoints
+// to the medium, which scatters them to grid nodes and transfer-function
+// points.
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+#include "fathom/differentiable.h"
+#include "fathom/error.h"
+
+#include "diff/dual.h"
+#include "integrate/preint_piece.h"
+#include "integrate/preintegrated.h"
+#include "render/renderer_impl.h"
+#include "volume/sampler.h"
+
+namespace fathom {
+
+void Gradients::zero() {
+    std::fill(density.begin(), density.end(), 0.0);
+    std::fill(color.begin(), color.end(), 0.0);
+    std::fill(scalar.begin(), scalar.end(), 0.0);
+    std::fill(tf_alpha.begin(), tf_alpha.end(), 0.0);
+    std::fill(tf_color.begin(), tf_color.end(), Rgb{0, 0, 0});
+}
+
+Gradients& Gradients::operator+=(const Gradients& o) {
+    auto add = [](std::vector<double>& a, const std::vector<double>& b) {
+        if (a.size() != b.size()) throw Error("gradients", "sizes differ");
+        for (std::size_t i = 0; i < a.size(); ++i) a[i] += b[i];
+    };
+    add(density, o.density);
+    add(color, o.color);
+    add(scalar, o.scalar);
+    add(tf_alpha, o.tf_alpha);
+    if (tf_color.size() != o.tf_color.size()) throw Error("gradients", "sizes differ");
+    for (std::size_t i = 0; i < tf_color.size(); ++i)
+        for (int c = 0; c < 3; ++c) tf_color[i][c] += o.tf_color[i][c];
+    return *this;
+}
+
+namespace {
+
+/// The eight nodes of a located cell and their trilinear weights.
+struct Corners {
+    std::array<std::int64_t, 8> node;
+    std::array<double, 8> w;
+};
+
+Corners corners(const GridCell& c, std::int64_t nx, std::int64_t ny) {
+    Corners r{};
+    const std::int64_t sy = nx, sz = nx * ny;
+    const std::array<std::int64_t, 8> off{0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1};
+    for (int k = 0; k < 8; ++k) {
+        const double wx = (k & 1) ? c.fx : 1.0 - c.fx;
+        const double wy = (k & 2) ? c.fy : 1.0 - c.fy;
+        const double wz = (k & 4) ? c.fz : 1.0 - c.fz;
+        r.node[k] = c.base + off[k];
+        r.w[k] = wx * wy * wz;
+    }
+    return r;
+}
+
+/// dφ/dx for φ(x) = (1 − e^{−x})/x, the alpha quadrature's weight over δ.
+double dphi(double x) {
+    if (std::abs(x) < 1e-2) {  // series: −1/2 + x/3 − x²/8 + x³/30 − x⁴/144 + x⁵/840
+        return -0.5 + x * (1.0 / 3 + x * (-1.0 / 8 + x * (1.0 / 30 + x * (-1.0 / 144 + x / 840))));
+    }
+    return (std::exp(-x) * (1.0 + x) - 1.0) / (x * x);
+}
+
+/// What the backward march hands each segment: dL/dτ_i and dL/dC_i.
+struct SegmentAdjoint {
+    double tau;
+    Rgb radiance;
+};
+
+/// A segment's forward values.
+struct SegmentValue {
+    double t;  // transmittance e^{−τ}
+    Rgb C;     // radiance
+};
+
+/// The per-segment work of one integrator over one medium: value(i) gives
+/// segment i's (t, C) exactly as the renderer computes them; grad(i, adj)
+/// scatters the segment's adjoint into the gradients.
+template <class Seg>
+RayResult march_forward(std::int64_t n, double termination, const Rgb& bg, Seg& seg) {
+    RayResult r;
+    double T = 1.0;
+    for (std::int64_t i = 1; i <= n; ++i) {
+        const SegmentValue s = seg.value(i);
+        for (int c = 0; c < 3; ++c) r.radiance[c] += T * s.C[c];
+        T *= s.t;
+        if (T < termination) {
+            r.alpha = 1.0 - T;
+            return r;
+        }
+    }
+    for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
+    r.alpha = 1.0 - T;
+    return r;
+}
+
+/// ∂I/∂C_i = T_{i−1}; ∂I/∂τ_i = −(I − I_{≤i}); ∂α/∂τ_i = T_final.
+template <class Seg>
+void march_backward(std::int64_t n, double termination, const RayResult& fwd, const RayAdjoint& adj,
+                    Seg& seg) {
+    const double T_final = 1.0 - fwd.alpha;
+    double T = 1.0;
+    Rgb acc{0, 0, 0};  // I_{≤i}
+    for (std::int64_t i = 1; i <= n; ++i) {
+        const SegmentValue s = seg.value(i);
+        SegmentAdjoint a{adj.alpha * T_final, {}};
+        for (int c = 0; c < 3; ++c) {
+            a.radiance[c] = adj.radiance[c] * T;
+            acc[c] += T * s.C[c];
+            a.tau -= adj.radiance[c] * (fwd.radiance[c] - acc[c]);
+        }
+        seg.grad(i, a);
+        T *= s.t;
+        if (T < termination) return;
+    }
+}
+
+// ---------------------------------------------------------------- media ---
+
+/// Pre-classified grids.
+template <class D, class C>
+struct GridMed {
+    GridSampler<D> density;
+    GridSampler<C> color;
+    struct Sample {
+        GridCell cell;
+        double sigma;
+        Rgb color;
+    };
+    [[nodiscard]] Sample at(const Vec3& p) const {
+        Sample s{density.cell(p), 0, {}};
+        s.sigma = density.interpolate(s.cell);
+        for (int c = 0; c < 3; ++c) s.color[c] = color.interpolate(s.cell, c);
+        return s;
+    }
+    static constexpr bool associated() { return false; }
+    /// Adds dL/dσ and dL/dc at a sample to the nodes around it.
+    void scatter(const Sample& s, double dsigma, const Rgb& dcolor, Gradients& g) const {
+        const Corners k = corners(s.cell, density.nx, density.ny);
+        for (int j = 0; j < 8; ++j) {
+            const auto n = static_cast<std::size_t>(k.node[j]);
+            g.density[n] += k.w[j] * dsigma;
+            for (int c = 0; c < 3; ++c) g.color[3 * n + c] += k.w[j] * dcolor[c];
+        }
+    }
+};
+
+/// A scalar volume through a transfer function.
+template <class T>
+struct ScalarMed {
+    GridSampler<T> grid;
+    const Classifier* tf = nullptr;
+    const std::vector<double>* alpha_chain = nullptr;  // dσ_k/d(written value_k)
+    struct Sample {
+        GridCell cell;
+        double v;
+        double sigma;
+        Rgb color;
+    };
+    [[nodiscard]] Sample at(const Vec3& p) const {
+        Sample s{grid.cell(p), 0, 0, {}};
+        s.v = grid.interpolate(s.cell);
+        s.sigma = tf->sigma(s.v);
+        s.color = tf->color(s.v);
+        return s;
+    }
+    [[nodiscard]] bool associated() const { return tf->associated(); }
+
+    /// dL/dv at a point to the nodes around it.
+    void scatter_scalar(const GridCell& cell, double dv, Gradients& g) const {
+        const Corners k = corners(cell, grid.nx, grid.ny);
+        for (int j = 0; j < 8; ++j) g.scalar[static_cast<std::size_t>(k.node[j])] += k.w[j] * dv;
+    }
+    /// Adds dL/dσ(v) and dL/dc(v) to v (slope of the piece) and to the
+    /// control points defining the piece.
+    void scatter(const Sample& s, double dsigma, const Rgb& dcolor, Gradients& g) const {
+        double dv = 0.0;
+        {
+            const auto& f = tf->sigma_function();
+            const std::size_t p = f.piece(s.v);
+            const auto& kn = f.knots();
+            if (p == 0) {
+                g.tf_alpha[0] += dsigma * (*alpha_chain)[0];
+            } else if (p >= kn.size()) {
+                g.tf_alpha[kn.size() - 1] += dsigma * (*alpha_chain)[kn.size() - 1];
+            } else {
+                const std::size_t k = p - 1;
+                const double span = kn[k + 1] - kn[k], w = (s.v - kn[k]) / span;
+                g.tf_alpha[k] += (1.0 - w) * dsigma * (*alpha_chain)[k];
+                g.tf_alpha[k + 1] += w * dsigma * (*alpha_chain)[k + 1];
+                dv += dsigma * (f.values()[k + 1][0] - f.values()[k][0]) / span;
+            }
+        }
+        {
+            const auto& f = tf->color_function();
+            const std::size_t p = f.piece(s.v);
+            const auto& kn = f.knots();
+            if (p == 0) {
+                for (int c = 0; c < 3; ++c) g.tf_color[0][c] += dcolor[c];
+            } else if (p >= kn.size()) {
+                for (int c = 0; c < 3; ++c) g.tf_color[kn.size() - 1][c] += dcolor[c];
+            } else {
+                const std::size_t k = p - 1;
+                const double span = kn[k + 1] - kn[k], w = (s.v - kn[k]) / span;
+                for (int c = 0; c < 3; ++c) {
+                    g.tf_color[k][c] += (1.0 - w) * dcolor[c];
+                    g.tf_color[k + 1][c] += w * dcolor[c];
+                    dv += dcolor[c] * (f.values()[k + 1][c] - f.values()[k][c]) / span;
+                }
+            }
+        }
+        scatter_scalar(s.cell, dv, g);
+    }
+};
+
+// ------------------------------------------------------ point-sampled ---
+
+/// riemann and alpha: σ and the source held at one point per segment.
+template <Model M, bool kAlpha, class Med>
+struct PointSegments {
+    const Med& med;
+    SampleGrid grid;
+    double delta;
+    Gradients* g = nullptr;
+
+    struct Local {
+        typename Med::Sample s;
+        double sa, w;  // σ_a after the model; the radiance weight (δ or (1 − e^{−σδ})/σ)
+        Rgb src;       // g after the model
+    };
+    [[nodiscard]] Local local(std::int64_t i) const {
+        Local l{med.at(grid.at(i)), 0, 0, {}};
+        // As ScalarMedium::classify / GridMedium::at, then apply_model.
+        l.src = l.s.color;
+        if (!med.associated())
+            for (double& c : l.src) c *= l.s.sigma;
+        l.sa = l.s.sigma;
+        apply_model<M>(l.sa, l.src);
+        if constexpr (kAlpha) {
+            const double alpha = -std::expm1(-l.sa * delta);
+            l.w = l.sa > 0.0 ? alpha / l.sa : delta;
+        } else {
+            l.w = delta;
+        }
+        return l;
+    }
+    SegmentValue value(std::int64_t i) const {
+        const Local l = local(i);
+        SegmentValue v{std::exp(-l.sa * delta), {}};
+        for (int c = 0; c < 3; ++c) v.C[c] = l.src[c] * l.w;
+        return v;
+    }
+    void grad(std::int64_t i, const SegmentAdjoint& a) const {
+        const Local l = local(i);
+        double dsa = a.tau * delta;  // τ = σ_a·δ
+        if constexpr (kAlpha) {
+            const double dw = delta * delta * dphi(l.sa * delta);  // ∂w/∂σ_a
+            for (int c = 0; c < 3; ++c) dsa += a.radiance[c] * l.src[c] * dw;
+        }
+        double dsigma = M == Model::emission ? 0.0 : dsa;
+        Rgb dcolor{0, 0, 0};
+        if constexpr (M != Model::absorption) {
+            for (int c = 0; c < 3; ++c) {
+                const double dsrc = a.radiance[c] * l.w;  // ∂L/∂g_c
+                if (med.associated()) {
+                    dcolor[c] = dsrc;
+                } else {
+                    dcolor[c] = dsrc * l.s.sigma;
+                    dsigma += dsrc * l.s.color[c];
+                }
+            }
+        }
+        med.scatter(l.s, dsigma, dcolor, *g);
+    }
+};
+
+// -------------------------------------------------- pre-integrated grids ---
+
+template <Model M, class D, class C>
+struct PreintGridSegments {
+    const GridMed<D, C>& med;
+    SampleGrid grid;  // ends: j at t_near + j·δ
+    double delta;
+    bool full;
+    Gradients* g = nullptr;
+
+    SegmentValue value(std::int64_t i) const {
+        const auto f = med.at(grid.at(i - 1)), b = med.at(grid.at(i));
+        const Segment s = preintegrate_grid<M>(f.sigma, f.color, b.sigma, b.color, delta, full);
+        return {s.transmittance, s.radiance};
+    }
+    void grad(std::int64_t i, const SegmentAdjoint& a) const {
+        using S = Dual<8>;
+        const auto f = med.at(grid.at(i - 1)), b = med.at(grid.at(i));
+        S sf = S::variable(f.sigma, 0), sb = S::variable(b.sigma, 1);
+        std::array<S, 3> cf, cb;
+        for (int c = 0; c < 3; ++c) {
+            cf[c] = S::variable(f.color[c], 2 + c);
+            cb[c] = S::variable(b.color[c], 5 + c);
+        }
+        preint::QuadraticT<S> q = preint::particle_source(sf, sb, cf, cb);
+        if constexpr (M == Model::absorption) q = {};
+        if constexpr (M == Model::emission) sf = sb = S(0.0);
+        const auto r = preint::integrate_piece_t<S>(S(delta), sf, sb, q, full);
+        std::array<double, 8> d{};
+        for (int k = 0; k < 8; ++k) {
+            d[k] = a.tau * r.depth.d[k];
+            for (int c = 0; c < 3; ++c) d[k] += a.radiance[c] * r.radiance[c].d[k];
+        }
+        med.scatter(f, d[0], {d[2], d[3], d[4]}, *g);
+        med.scatter(b, d[1], {d[5], d[6], d[7]}, *g);
+    }
+};
+
+// ------------------------------------------ pre-integrated scalar volume ---
+
+/// One pre-integrated segment of a scalar volume over any number type: the
+/// ramp vf → vb cut at the control values (as for_each_ramp_piece), each
+/// piece integrated by integrate_piece_t, composed as RampIntegral.
+/// sigma_at(k) and color_at(k, c) give control point k's values as S.
+template <Model M, class S, class SigmaAt, class ColorAt>
+preint::PieceIntegralT<S> ramp_t(const Classifier& tf, const S& vf, const S& vb, double delta, bool full,
+                                 SigmaAt&& sigma_at, ColorAt&& color_at) {
+    const auto& sig = tf.sigma_function();
+    const auto& col = tf.color_function();
+    preint::PieceIntegralT<S> out;  // depth, radiance E
+    S T = 1.0;
+    auto on_sigma = [&](std::size_t p, const S& v) -> S {
+        const auto& kn = sig.knots();
+        if (p == 0) return sigma_at(0);
+        if (p >= kn.size()) return sigma_at(kn.size() - 1);
+        const std::size_t k = p - 1;
+        const S w = (v - kn[k]) / (kn[k + 1] - kn[k]);
+        return sigma_at(k) + w * (sigma_at(k + 1) - sigma_at(k));
+    };
+    auto on_color = [&](std::size_t p, const S& v) -> std::array<S, 3> {
+        const auto& kn = col.knots();
+        std::array<S, 3> r;
+        if (p == 0 || p >= kn.size()) {
+            const std::size_t k = p == 0 ? 0 : kn.size() - 1;
+            for (int c = 0; c < 3; ++c) r[c] = color_at(k, c);
+            return r;
+        }
+        const std::size_t k = p - 1;
+        const S w = (v - kn[k]) / (kn[k + 1] - kn[k]);
+        for (int c = 0; c < 3; ++c) r[c] = color_at(k, c) + w * (color_at(k + 1, c) - color_at(k, c));
+        return r;
+    };
+    auto piece = [&](const S& l0, const S& l1) {
+        const S v0 = vf + l0 * (vb - vf), v1 = vf + l1 * (vb - vf);
+        const double vm = 0.5 * (value_of(v0) + value_of(v1));
+        const std::size_t ps = sig.piece(vm), pc = col.piece(vm);
+        S s0 = on_sigma(ps, v0), s1 = on_sigma(ps, v1);
+        const auto c0 = on_color(pc, v0), c1 = on_color(pc, v1);
+        preint::QuadraticT<S> q =
+            tf.associated() ? preint::emission_source(c0, c1) : preint::particle_source(s0, s1, c0, c1);
+        if constexpr (M == Model::absorption) q = {};
+        if constexpr (M == Model::emission) s0 = s1 = S(0.0);
+        const auto r = preint::integrate_piece_t<S>((l1 - l0) * delta, s0, s1, q, full);
+        for (int k = 0; k < 3; ++k) out.radiance[k] += (full ? T : S(1.0)) * r.radiance[k];
+        out.depth += r.depth;
+        T = exp(-out.depth);
+    };
+    using std::exp;
+    const auto& knots = tf.breakpoints();
+    S l = 0.0;
+    const double f = value_of(vf), b = value_of(vb);
+    if (f < b) {
+        for (auto it = std::upper_bound(knots.begin(), knots.end(), f); it != knots.end() && *it < b; ++it) {
+            const S ln = (*it - vf) / (vb - vf);
+            piece(l, ln);
+            l = ln;
+        }
+    } else if (b < f) {
+        auto it = std::lower_bound(knots.begin(), knots.end(), f);
+        while (it != knots.begin() && *(it - 1) > b) {
+            --it;
+            const S ln = (vf - *it) / (vf - vb);
+            piece(l, ln);
+            l = ln;
+        }
+    }
+    piece(l, S(1.0));
+    return out;
+}
+
+template <Model M, class T>
+struct PreintScalarSegments {
+    const ScalarMed<T>& med;
+    SampleGrid grid;
+    double delta;
+    bool full;
+    Gradients* g = nullptr;
+
+    SegmentValue value(std::int64_t i) const {
+        const double vf = med.grid(grid.at(i - 1)), vb = med.grid(grid.at(i));
+        const Segment s = preintegrate_scalar<M>(*med.tf, vf, vb, delta, full);
+        return {s.transmittance, s.radiance};
+    }
+
+    static constexpr int kSlots = 16;
+    using S = Dual<kSlots>;
+
+    void grad(std::int64_t i, const SegmentAdjoint& a) const {
+        const GridCell cf = med.grid.cell(grid.at(i - 1)), cb = med.grid.cell(grid.at(i));
+        const double vf = med.grid.interpolate(cf), vb = med.grid.interpolate(cb);
+        const auto& sig = med.tf->sigma_function();
+        const auto& col = med.tf->color_function();
+        // The control points this ramp reads: σ points and color points.
+        std::vector<std::pair<bool, std::size_t>> used;  // (is color, index)
+        {
+            const double lo = std::min(vf, vb), hi = std::max(vf, vb);
+            auto add_range = [&](const std::vector<double>& kn, bool is_color) {
+                if (kn.empty()) return;
+                // Pieces touched: piece(lo) .. piece(hi); piece p reads points p−1, p (clamped).
+                const std::size_t p0 = is_color ? col.piece(lo) : sig.piece(lo);
+                const std::size_t p1 = is_color ? col.piece(hi) : sig.piece(hi);
+                const std::size_t k0 = p0 == 0 ? 0 : p0 - 1, k1 = std::min(p1, kn.size() - 1);
+                for (std::size_t k = k0; k <= k1; ++k) used.push_back({is_color, k});
+            };
+            add_range(sig.knots(), false);
+            add_range(col.knots(), true);
+        }
+        std::vector<int> slot_sigma(sig.knots().size(), -1), slot_color(col.knots().size(), -1);
+        double dvf = 0, dvb = 0;
+        std::size_t next = 0;
+        bool first = true;
+        while (first || next < used.size()) {
+            std::fill(slot_sigma.begin(), slot_sigma.end(), -1);
+            std::fill(slot_color.begin(), slot_color.end(), -1);
+            int slot = 2;  // 0: vf, 1: vb
+            const std::size_t begin = next;
+            while (next < used.size()) {
+                const int need = used[next].first ? 3 : 1;
+                if (slot + need > kSlots) break;
+                (used[next].first ? slot_color : slot_sigma)[used[next].second] = slot;
+                slot += need;
+                ++next;
+            }
+            const S sf = first ? S::variable(vf, 0) : S(vf), sb = first ? S::variable(vb, 1) : S(vb);
+            auto sigma_at = [&](std::size_t k) {
+                const double x = sig.values()[k][0];
+                return slot_sigma[k] >= 0 ? S::variable(x, slot_sigma[k]) : S(x);
+            };
+            auto color_at = [&](std::size_t k, int c) {
+                const double x = col.values()[k][c];
+                return slot_color[k] >= 0 ? S::variable(x, slot_color[k] + c) : S(x);
+            };
+            const auto r = ramp_t<M, S>(*med.tf, sf, sb, delta, full, sigma_at, color_at);
+            auto d = [&](int k) {
+                double x = a.tau * r.depth.d[k];
+                for (int c = 0; c < 3; ++c) x += a.radiance[c] * r.radiance[c].d[k];
+                return x;
+            };
+            if (first) {
+                dvf = d(0);
+                dvb = d(1);
+            }
+            for (std::size_t u = begin; u < next; ++u) {
+                const std::size_t k = used[u].second;
+                if (used[u].first) {
+                    for (int c = 0; c < 3; ++c) g->tf_color[k][c] += d(slot_color[k] + c);
+                } else {
+                    g->tf_alpha[k] += d(slot_sigma[k]) * (*med.alpha_chain)[k];
+                }
+            }
+            first = false;
+        }
+        med.scatter_scalar(cf, dvf, *g);
+        med.scatter_scalar(cb, dvb, *g);
+    }
+};
+
+}  // namespace
+
+// ------------------------------------------------------------- renderer ---
+
+struct DiffRenderer::Impl {
+    Renderer::Impl base;  // settings, lattice, spans, step, background, classifier
+    const Volume* density = nullptr;
+    const Volume* color = nullptr;
+    const Volume* scalar = nullptr;
+    std::size_t alpha_points = 0, color_points = 0;
+    std::vector<double> alpha_chain;  // dσ_k/d(written value_k)
+
+    /// Calls f(seg, n) with the segment walker of the ray and its count n, or
+    /// returns false when the ray misses.
+    template <class F>
+    bool with_segments(const Ray& ray, double offset, Gradients* g, F&& f) const {
+        RaySpan span;
+        if (!base.span_of(ray, span)) return false;
+        span.sample_offset = offset;
+        const RenderSettings& s = base.s;
+        const std::int64_t n = segment_count(span.length(), base.h);
+        const double delta = span.length() / static_cast<double>(n);
+        const double off =
+            span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
+        const SampleGrid point{&span, delta, off, 1};
+        const SampleGrid ends{&span, delta, 0.0, 0};
+        const bool full = s.integrator == IntegratorKind::preintegrated;
+        auto run = [&]<Model M>() {
+            if (scalar != nullptr) {
+                visit_dtype(scalar->dtype(), [&]<class T>(T*) {
+                    ScalarMed<T> med{GridSampler<T>(*scalar), &base.tf, &alpha_chain};
+                    dispatch<M>(med, point, ends, delta, full, n, g, f, PreintScalarTag{});
+                });
+            } else {
+                visit_dtype(density->dtype(), [&]<class D>(D*) {
+                    if constexpr (std::is_floating_point_v<D>) {
+                        visit_dtype(color->dtype(), [&]<class C>(C*) {
+                            if constexpr (std::is_floating_point_v<C>) {
+                                GridMed<D, C> med{GridSampler<D>(*density), GridSampler<C>(*color)};
+                                dispatch<M>(med, point, ends, delta, full, n, g, f, PreintGridTag{});
+                            }
+                        });
+                    }
+                });
+            }
+        };
+        switch (s.model) {
+            case Model::absorption:
+                run.template operator()<Model::absorption>();
+                break;
+            case Model::emission:
+                run.template operator()<Model::emission>();
+                break;
+            default:
+                run.template operator()<Model::emission_absorption>();
+                break;
+        }
+        return true;
+    }
+
+    struct PreintScalarTag {};
+    struct PreintGridTag {};
+
+    template <Model M, class Med, class F, class Tag>
+    void dispatch(const Med& med, const SampleGrid& point, const SampleGrid& ends, double delta, bool full,
+                  std::int64_t n, Gradients* g, F& f, Tag) const {
+        switch (base.s.integrator) {
+            case IntegratorKind::riemann: {
+                PointSegments<M, false, Med> seg{med, point, delta, g};
+                f(seg, n);
+                return;
+            }
+            case IntegratorKind::alpha: {
+                PointSegments<M, true, Med> seg{med, point, delta, g};
+                f(seg, n);
+                return;
+            }
+            default:
+                if constexpr (std::is_same_v<Tag, PreintScalarTag>) {
+                    PreintScalarSegments<M, std::remove_cvref_t<decltype(*med.grid.data)>> seg{
+                        med, ends, delta, full, g};
+                    f(seg, n);
+                } else {
+                    PreintGridSegments<M, std::remove_cvref_t<decltype(*med.density.data)>,
+                                       std::remove_cvref_t<decltype(*med.color.data)>>
+                        seg{med, ends, delta, full, g};
+                    f(seg, n);
+                }
+                return;
+        }
+    }
+
+    [[nodiscard]] double termination() const {
+        return base.s.order == Order::front_to_back ? base.s.termination : 0.0;
+    }
+
+    [[nodiscard]] RayResult forward(const Ray& ray, double offset) const {
+        RayResult r{base.bg, 0.0};
+        with_segments(ray, offset, nullptr,
+                      [&](auto& seg, std::int64_t n) { r = march_forward(n, termination(), base.bg, seg); });
+        return r;
+    }
+    void backward(const Ray& ray, const RayResult& fwd, const RayAdjoint& adj, Gradients& g,
+                  double offset) const {
+        with_segments(ray, offset, &g,
+                      [&](auto& seg, std::int64_t n) { march_backward(n, termination(), fwd, adj, seg); });
+    }
+    [[nodiscard]] int threads(std::size_t work) const {
+        int n = base.s.threads > 0 ? base.s.threads
+                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+        return static_cast<int>(std::clamp<std::size_t>(work, 1, static_cast<std::size_t>(n)));
+    }
+    /// Runs f(begin, end, thread) over `count` items in contiguous blocks.
+    template <class F>
+    void parallel_blocks(std::size_t count, int nthreads, F&& f) const {
+        std::exception_ptr failure;
+        std::mutex m;
+        auto work = [&](int t) {
+            try {
+                const std::size_t b =
+                    count * static_cast<std::size_t>(t) / static_cast<std::size_t>(nthreads);
+                const std::size_t e =
+                    count * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(nthreads);
+                f(b, e, t);
+            } catch (...) {
+                std::lock_guard lock(m);
+                if (!failure) failure = std::current_exception();
+            }
+        };
+        std::vector<std::thread> pool;
+        for (int t = 1; t < nthreads; ++t) pool.emplace_back(work, t);
+        work(0);
+        for (auto& th : pool) th.join();
+        if (failure) std::rethrow_exception(failure);
+    }
+};
+
+namespace {
+
+void check_differentiable(const RenderSettings& s) {
+    switch (s.model) {
+        case Model::emission_absorption:
+        case Model::absorption:
+        case Model::emission:
+            break;
+        default:
+            throw Error("differentiable rendering",
+                        "model '" + std::string(to_string(s.model)) +
+                            "' is not differentiable (emission-absorption, absorption or emission)");
+    }
+    if (s.integrator == IntegratorKind::reference)
+        throw Error("differentiable rendering",
+                    "the reference integrator is not differentiable (riemann, alpha, preintegrated, "
+                    "preintegrated-simple)");
+    if (s.shading.enabled) throw Error("differentiable rendering", "shading is not differentiable");
+}
+
+}  // namespace
+
+DiffRenderer::DiffRenderer(const Volume& density, const Volume& color, RenderSettings settings)
+    : impl_(std::make_unique<Impl>()) {
+    check_differentiable(settings);
+    // The renderer's own checks of the grids (types, components, lattice).
+    (void)Renderer(density, color, [&] {
+        RenderSettings s = settings;
+        s.skip_empty = false;
+        return s;
+    }());
+    impl_->base.s = settings;
+    setup_lattice(impl_->base, density);
+    impl_->density = &density;
+    impl_->color = &color;
+}
+
+DiffRenderer::DiffRenderer(const Volume& volume, const TransferFunction& tf, RenderSettings settings)
+    : impl_(std::make_unique<Impl>()) {
+    check_differentiable(settings);
+    check_lattice(volume, "volume");
+    if (volume.components() != 1)
+        throw Error("volume",
+                    "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
+    if (!tf.gradient_opacity_points.empty())
+        throw Error("differentiable rendering", "gradient opacity is not differentiable");
+    if (tf.alpha_points.empty() || tf.color_points.empty())
+        throw Error("transfer function", "needs alpha and color points");
+    impl_->base.s = settings;
+    setup_lattice(impl_->base, volume);
+    const double u = tf.opacity_unit_distance.value_or(volume.smallest_spacing());
+    impl_->base.tf = Classifier(tf, volume.smallest_spacing());
+    impl_->scalar = &volume;
+    impl_->alpha_points = tf.alpha_points.size();
+    impl_->color_points = tf.color_points.size();
+    for (const auto& [v, a] : tf.alpha_points) {
+        (void)v;
+        if (tf.alpha_kind == TransferFunction::Alpha::extinction)
+            impl_->alpha_chain.push_back(1.0);
+        else  // σ = −ln(1 − a)/u, clamped at a = 1 − 1e−6
+            impl_->alpha_chain.push_back(a < 1.0 - 1e-6 ? 1.0 / (u * (1.0 - a)) : 0.0);
+    }
+}
+
+DiffRenderer::~DiffRenderer() = default;
+DiffRenderer::DiffRenderer(DiffRenderer&&) noexcept = default;
+DiffRenderer& DiffRenderer::operator=(DiffRenderer&&) noexcept = default;
+
+const RenderSettings& DiffRenderer::settings() const {
+    return impl_->base.s;
+}
+
+Gradients DiffRenderer::make_gradients() const {
+    Gradients g;
+    if (impl_->scalar != nullptr) {
+        g.scalar.assign(static_cast<std::size_t>(impl_->scalar->num_nodes()), 0.0);
+        g.tf_alpha.assign(impl_->alpha_points, 0.0);
+        g.tf_color.assign(impl_->color_points, Rgb{0, 0, 0});
+    } else {
+        const auto n = static_cast<std::size_t>(impl_->density->num_nodes());
+        g.density.assign(n, 0.0);
+        g.color.assign(3 * n, 0.0);
+    }
+    return g;
+}
+
+RayResult DiffRenderer::forward(const Ray& ray, double sample_offset) const {
+    return impl_->forward(ray, sample_offset);
+}
+
+void DiffRenderer::backward(const Ray& ray, const RayResult& forward, const RayAdjoint& adjoint, Gradients& g,
+                            double sample_offset) const {
+    impl_->backward(ray, forward, adjoint, g, sample_offset);
+}
+
+std::vector<RayResult> DiffRenderer::forward(std::span<const Ray> rays) const {
+    std::vector<RayResult> out(rays.size());
+    impl_->parallel_blocks(rays.size(), impl_->threads(rays.size()), [&](std::size_t b, std::size_t e, int) {
+        for (std::size_t i = b; i < e; ++i) out[i] = impl_->forward(rays[i], -1.0);
+    });
+    return out;
+}
+
+void DiffRenderer::backward(std::span<const Ray> rays, std::span<const RayResult> forward,
+                            std::span<const RayAdjoint> adjoints, Gradients& g) const {
+    if (forward.size() != rays.size() || adjoints.size() != rays.size())
+        throw Error("backward", "rays, forward results and adjoints differ in number");
+    const int nt = impl_->threads(rays.size());
+    std::vector<Gradients> part(static_cast<std::size_t>(nt), make_gradients());
+    impl_->parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
+        for (std::size_t i = b; i < e; ++i)
+            impl_->backward(rays[i], forward[i], adjoints[i], part[static_cast<std::size_t>(t)], -1.0);
+    });
+    for (const Gradients& p : part) g += p;
+}
+
+Image DiffRenderer::render(const Camera& camera) const {
+    const RenderSettings& s = impl_->base.s;
+    Image img(s.width, s.height);
+    const auto count = static_cast<std::size_t>(s.width) * static_cast<std::size_t>(s.height);
+    impl_->parallel_blocks(count, impl_->threads(count), [&](std::size_t b, std::size_t e, int) {
+        for (std::size_t k = b; k < e; ++k) {
+            const int x = static_cast<int>(k % static_cast<std::size_t>(s.width));
+            const int y = static_cast<int>(k / static_cast<std::size_t>(s.width));
+            const double off = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
+            const RayResult r = impl_->forward(camera.generate(x, y, s.width, s.height), off);
+            float* p = img.pixel(x, y);
+            for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
+            p[3] = static_cast<float>(r.alpha);
+        }
+    });
+    return img;
+}
+
+void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint, Gradients& g) const {
+    const RenderSettings& s = impl_->base.s;
+    const auto count = static_cast<std::size_t>(s.width) * static_cast<std::size_t>(s.height);
+    if (adjoint.size() != 4 * count)
+        throw Error("backward", "the adjoint image must hold 4 floats per pixel (" +
+                                    std::to_string(4 * count) + "), got " + std::to_string(adjoint.size()));
+    const int nt = impl_->threads(count);
+    std::vector<Gradients> part(static_cast<std::size_t>(nt), make_gradients());
+    impl_->parallel_blocks(count, nt, [&](std::size_t b, std::size_t e, int t) {
+        for (std::size_t k = b; k < e; ++k) {
+            const float* a = &adjoint[4 * k];
+            if (a[0] == 0.0f && a[1] == 0.0f && a[2] == 0.0f && a[3] == 0.0f) continue;
+            const int x = static_cast<int>(k % static_cast<std::size_t>(s.width));
+            const int y = static_cast<int>(k / static_cast<std::size_t>(s.width));
+            const double off = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
+            const Ray ray = camera.generate(x, y, s.width, s.height);
+            const RayResult fwd = impl_->forward(ray, off);  // in double, as the backward march needs
+            impl_->backward(ray, fwd, {{a[0], a[1], a[2]}, a[3]}, part[static_cast<std::size_t>(t)], off);
+        }
+    });
+    for (const Gradients& p : part) g += p;
+}
+
+}  // namespace fathom
