@@ -28,12 +28,6 @@ void write(const fs::path& p, const std::string& text) {
     std::ofstream(p, std::ios::binary) << text;
 }
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
 
 class WarningCatcher {
 public:
@@ -91,18 +85,8 @@ fs::path slicer_xml() {
     return fathom::test::source_dir() / "presets" / "slicer" / "presets.xml";
 }
 
-struct CliRun {
-    int status;
-    std::string out, err;
-};
-
-CliRun run_cli(const std::string& args, const TempDir& d) {
-    const std::string outfile = (d / "stdout.txt").string(), errfile = (d / "stderr.txt").string();
-    const std::string cmd =
-        fathom::test::cli() + " " + args + " >" + outfile + " 2>" + errfile + " </dev/null";
-    const int rc = std::system(cmd.c_str());
-    return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, slurp(outfile), slurp(errfile)};
-}
+using fathom::test::CliRun;
+using fathom::test::run_cli;
 
 }  // namespace
 

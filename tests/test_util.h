@@ -1,10 +1,14 @@
 // Helpers shared by the tests: paths to the shared data and the CLI, temp dirs.
 #pragma once
 
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -56,6 +60,30 @@ public:
 private:
     std::filesystem::path path_;
 };
+
+/// The whole file as bytes ("" when it cannot be read).
+inline std::string read_file_bytes(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+/// Writes bytes to a file, replacing it.
+inline void write_file_bytes(const std::filesystem::path& p, const std::string& bytes) {
+    std::ofstream(p, std::ios::binary) << bytes;
+}
+
+/// The CLI run with `args` (a shell command line), stdout and stderr kept in `d`.
+struct CliRun {
+    int status;
+    std::string out, err;
+};
+inline CliRun run_cli(const std::string& args, const TempDir& d) {
+    const std::string outfile = (d / "stdout.txt").string(), errfile = (d / "stderr.txt").string();
+    const std::string cmd = cli() + " " + args + " >" + outfile + " 2>" + errfile + " </dev/null";
+    const int rc = std::system(cmd.c_str());
+    return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, read_file_bytes(outfile), read_file_bytes(errfile)};
+}
 
 /// Expects fathom::Error whose message contains the file name and every key word.
 inline void expect_error(const std::function<void()>& f, const std::filesystem::path& file,

@@ -16,5 +16,7 @@ void add_convert_command(CLI::App& app);
 void add_tf_table_command(CLI::App& app);
 void add_tf_convert_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
+void add_views_command(CLI::App& app);
+void add_fit_command(CLI::App& app);
 
 }  // namespace fathom::cli

@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
     fathom::cli::add_tf_table_command(app);
     fathom::cli::add_tf_convert_command(app);
     fathom::cli::add_bench_command(app);
+    fathom::cli::add_views_command(app);
+    fathom::cli::add_fit_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

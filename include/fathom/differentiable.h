@@ -85,14 +85,17 @@ public:
     void backward(const Ray& ray, const RayResult& forward, const RayAdjoint& adjoint, Gradients& g,
                   double sample_offset = -1.0) const;
 
-    /// Many rays over the settings' threads. Forward results come in ray order.
-    [[nodiscard]] std::vector<RayResult> forward(std::span<const Ray> rays) const;
+    /// Many rays over the settings' threads, with optional per-ray sample
+    /// offsets (empty: the sample_point setting for all). Forward results
+    /// come in ray order.
+    [[nodiscard]] std::vector<RayResult> forward(std::span<const Ray> rays,
+                                                 std::span<const double> offsets = {}) const;
     /// Adds the gradients of many rays into g. Each thread sums a fixed,
     /// contiguous block of rays into its own buffer; the buffers are added in
     /// thread order, so the result is deterministic for a given thread count
-    /// (and equals the one-ray calls in order for one thread).
+    /// (and, with one thread and g zero, equals the one-ray calls in order).
     void backward(std::span<const Ray> rays, std::span<const RayResult> forward,
-                  std::span<const RayAdjoint> adjoints, Gradients& g) const;
+                  std::span<const RayAdjoint> adjoints, Gradients& g, std::span<const double> offsets = {}) const;
 
     /// The image of a camera (jitter as Renderer::render), and its backward
     /// pass given dL/d(pixel) as H×W×4 floats (RGBA) in `adjoint` (each

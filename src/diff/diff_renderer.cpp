@@ -715,23 +715,38 @@ void DiffRenderer::backward(const Ray& ray, const RayResult& forward, const RayA
     impl_->backward(ray, forward, adjoint, g, sample_offset);
 }
 
-std::vector<RayResult> DiffRenderer::forward(std::span<const Ray> rays) const {
+namespace {
+
+void check_offsets(std::span<const Ray> rays, std::span<const double> offsets) {
+    if (!offsets.empty() && offsets.size() != rays.size())
+        throw Error("differentiable rendering", "rays and sample offsets differ in number");
+}
+
+}  // namespace
+
+std::vector<RayResult> DiffRenderer::forward(std::span<const Ray> rays,
+                                             std::span<const double> offsets) const {
+    check_offsets(rays, offsets);
     std::vector<RayResult> out(rays.size());
     impl_->parallel_blocks(rays.size(), impl_->threads(rays.size()), [&](std::size_t b, std::size_t e, int) {
-        for (std::size_t i = b; i < e; ++i) out[i] = impl_->forward(rays[i], -1.0);
+        for (std::size_t i = b; i < e; ++i)
+            out[i] = impl_->forward(rays[i], offsets.empty() ? -1.0 : offsets[i]);
     });
     return out;
 }
 
 void DiffRenderer::backward(std::span<const Ray> rays, std::span<const RayResult> forward,
-                            std::span<const RayAdjoint> adjoints, Gradients& g) const {
+                            std::span<const RayAdjoint> adjoints, Gradients& g,
+                            std::span<const double> offsets) const {
+    check_offsets(rays, offsets);
     if (forward.size() != rays.size() || adjoints.size() != rays.size())
         throw Error("backward", "rays, forward results and adjoints differ in number");
     const int nt = impl_->threads(rays.size());
     std::vector<Gradients> part(static_cast<std::size_t>(nt), make_gradients());
     impl_->parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t i = b; i < e; ++i)
-            impl_->backward(rays[i], forward[i], adjoints[i], part[static_cast<std::size_t>(t)], -1.0);
+            impl_->backward(rays[i], forward[i], adjoints[i], part[static_cast<std::size_t>(t)],
+                            offsets.empty() ? -1.0 : offsets[i]);
     });
     for (const Gradients& p : part) g += p;
 }

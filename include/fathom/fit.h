@@ -1,0 +1,90 @@
+// Reconstruction by reverse rendering (docs/reverse-rendering.md): density
+// and color grids fitted to a view set with Adam, an MSE loss and
+// total-variation regularisation, coarse to fine, on random ray batches.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+
+#include "fathom/math.h"
+#include "fathom/render.h"
+#include "fathom/views.h"
+#include "fathom/volume.h"
+
+namespace fathom {
+
+struct FitOptions {
+    /// The world box the grids cover.
+    std::array<Vec3, 2> bounds{};
+    /// Nodes along the box's longest side at the end, and at the start; the
+    /// grid doubles from start_grid until it reaches grid (32 → 64 → 128).
+    int grid = 128;
+    int start_grid = 32;
+    int iterations = 2000;
+    /// Rays per iteration (random views and pixels).
+    int batch = 4096;
+    /// Adam step sizes: density in optical depth per voxel of the current
+    /// grid (σ·spacing), color in color units.
+    double lr_density = 0.1, lr_color = 0.03;
+    /// Total variation (mean over nodes of the squared differences to the
+    /// next node along x, y and z), of the same scaled density and of color.
+    double tv_density = 1e-3, tv_color = 1e-3;
+    /// What the images' transparent parts show (alpha-composited targets).
+    Rgb background{1, 1, 1};
+    IntegratorKind integrator = IntegratorKind::alpha;
+    /// Sample step in voxels of the current grid.
+    double step = 0.5;
+    std::uint32_t seed = 1;
+    int threads = 0;
+
+    /// Throws Error("fit options", ...) on out-of-range values.
+    void validate() const;
+};
+
+struct FitStats {
+    int iteration = 0;  // iterations done
+    int grid = 0;       // nodes along the longest side now
+    double loss = 0;    // the batch's MSE (per channel) plus the TV terms
+    double psnr = 0;    // of the batch's MSE alone
+    double rays_per_second = 0;
+};
+
+class Fitter {
+public:
+    /// The view set must outlive the fitter.
+    Fitter(const ViewSet& train, FitOptions options);
+    ~Fitter();
+    Fitter(Fitter&&) noexcept;
+    Fitter& operator=(Fitter&&) noexcept;
+
+    /// One iteration: a ray batch, its gradients, an Adam step, the grid
+    /// doubled when its time comes.
+    FitStats step();
+    [[nodiscard]] int iteration() const;
+    [[nodiscard]] bool done() const;
+    [[nodiscard]] const FitOptions& options() const;
+    /// The current grids: σ (1/world unit, float32) and RGB color (float32, 3 components).
+    [[nodiscard]] const Volume& density() const;
+    [[nodiscard]] const Volume& color() const;
+    /// Render settings that reproduce the fit's images from the grids.
+    [[nodiscard]] RenderSettings render_settings(int width, int height) const;
+    /// Mean PSNR (dB) over a view set's images (RGB composited over the
+    /// background), rendered from the current grids.
+    [[nodiscard]] double psnr(const ViewSet& views) const;
+
+    /// Writes the state (grids, Adam moments, iteration, random state) to a
+    /// folder; resume() continues from it exactly (same results as without
+    /// the interruption, for a given thread count).
+    void save_checkpoint(const std::filesystem::path& dir) const;
+    static Fitter resume(const ViewSet& train, FitOptions options, const std::filesystem::path& dir);
+
+    struct Impl;
+
+private:
+    explicit Fitter(std::unique_ptr<Impl> impl);
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fathom

@@ -1,0 +1,362 @@
+// Reconstruction by reverse rendering (include/fathom/fit.h).
+#include "fathom/fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "fathom/differentiable.h"
+#include "fathom/error.h"
+#include "fathom/io.h"
+
+#include "volume/sampler.h"
+
+namespace fathom {
+
+namespace fs = std::filesystem;
+
+void FitOptions::validate() const {
+    auto fail = [](const std::string& m) { throw Error("fit options", m); };
+    for (int a = 0; a < 3; ++a)
+        if (!(bounds[1][a] > bounds[0][a]) || !std::isfinite(bounds[0][a]) || !std::isfinite(bounds[1][a]))
+            fail("the bounds must have min < max on every axis");
+    if (grid < 4 || grid > 1024) fail("grid must be in 4..1024");
+    if (start_grid < 4 || start_grid > grid) fail("start_grid must be in 4..grid");
+    if (iterations < 1 || iterations > 10000000) fail("iterations must be in 1..10^7");
+    if (batch < 1 || batch > 1 << 24) fail("batch must be in 1..2^24");
+    if (!(lr_density > 0) || !(lr_color > 0) || !std::isfinite(lr_density) || !std::isfinite(lr_color))
+        fail("learning rates must be positive");
+    if (!(tv_density >= 0) || !(tv_color >= 0) || !std::isfinite(tv_density) || !std::isfinite(tv_color))
+        fail("TV weights must be ≥ 0");
+    if (!(step > 0) || !std::isfinite(step)) fail("step must be positive");
+    if (integrator == IntegratorKind::reference) fail("the reference integrator is not differentiable");
+    if (threads < 0) fail("threads must be ≥ 0");
+}
+
+namespace {
+
+constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEps = 1e-8;
+
+/// Grid sizes from start_grid doubling up to grid (the last is grid).
+std::vector<int> level_sizes(const FitOptions& o) {
+    std::vector<int> s{o.start_grid};
+    while (s.back() < o.grid) s.push_back(std::min(o.grid, 2 * s.back()));
+    return s;
+}
+
+/// The lattice over the bounds with n nodes along the longest side (cubic
+/// voxels; the other sides rounded up to whole voxels).
+Volume make_grid(const FitOptions& o, int n, int comps) {
+    const Vec3 e = o.bounds[1] - o.bounds[0];
+    const double s = std::max({e.x, e.y, e.z}) / (n - 1);
+    std::array<std::int64_t, 3> dims{};
+    for (int a = 0; a < 3; ++a)
+        dims[a] = std::max<std::int64_t>(2, static_cast<std::int64_t>(std::ceil(e[a] / s - 1e-9)) + 1);
+    Volume v(dims, DType::f32, comps);
+    v.set_spacing({s, s, s});
+    v.set_origin(o.bounds[0]);
+    return v;
+}
+
+/// `to` resampled from `from` (trilinear, at to's node positions).
+void resample(const Volume& from, Volume& to) {
+    const GridSampler<float> g(from);
+    const Mat3 w2i = from.axes().inverse();
+    float* out = to.data<float>();
+    const int C = to.components();
+    std::int64_t n = 0;
+    for (std::int64_t k = 0; k < to.dims()[2]; ++k)
+        for (std::int64_t j = 0; j < to.dims()[1]; ++j)
+            for (std::int64_t i = 0; i < to.dims()[0]; ++i, ++n) {
+                const Vec3 p = w2i * (to.index_to_world({static_cast<double>(i), static_cast<double>(j),
+                                                         static_cast<double>(k)}) -
+                                      from.origin());
+                const GridCell cell = g.cell(p);
+                for (int c = 0; c < C; ++c) out[n * C + c] = static_cast<float>(g.interpolate(cell, c));
+            }
+}
+
+/// Squared-difference total variation of x (C components per node) with
+/// weight w/N: adds its gradient into grad (scaled by `scale`, the
+/// parameter's unit) and returns its value.
+double total_variation(const Volume& v, double scale, double w, std::vector<double>& grad) {
+    if (w == 0.0) return 0.0;
+    const auto& d = v.dims();
+    const int C = v.components();
+    const float* x = v.data<float>();
+    const double k = w / static_cast<double>(v.num_nodes());
+    const std::array<std::int64_t, 3> stride{1, d[0], d[0] * d[1]};
+    double total = 0;
+    std::int64_t n = 0;
+    for (std::int64_t kz = 0; kz < d[2]; ++kz)
+        for (std::int64_t jy = 0; jy < d[1]; ++jy)
+            for (std::int64_t ix = 0; ix < d[0]; ++ix, ++n) {
+                const std::array<bool, 3> has{ix + 1 < d[0], jy + 1 < d[1], kz + 1 < d[2]};
+                for (int a = 0; a < 3; ++a) {
+                    if (!has[a]) continue;
+                    const std::int64_t m = n + stride[a];
+                    for (int c = 0; c < C; ++c) {
+                        const double diff = scale * (static_cast<double>(x[m * C + c]) - x[n * C + c]);
+                        total += k * diff * diff;
+                        grad[static_cast<std::size_t>(n * C + c)] -= 2 * k * diff;
+                        grad[static_cast<std::size_t>(m * C + c)] += 2 * k * diff;
+                    }
+                }
+            }
+    return total;
+}
+
+}  // namespace
+
+struct Fitter::Impl {
+    const ViewSet* train = nullptr;
+    FitOptions o;
+    std::vector<int> levels;
+    int level = 0;
+    int iteration = 0;
+    long adam_t = 0;  // Adam steps on the current grid
+    std::mt19937_64 rng;
+    Volume density, color;      // σ (1/world unit), c
+    Volume m_d, v_d, m_c, v_c;  // Adam moments (density in the scaled unit)
+    std::unique_ptr<DiffRenderer> renderer;
+
+    [[nodiscard]] RenderSettings settings(int w, int h) const {
+        RenderSettings s;
+        s.width = w;
+        s.height = h;
+        s.integrator = o.integrator;
+        s.step = o.step;
+        s.background = o.background;
+        s.threads = o.threads;
+        return s;
+    }
+    [[nodiscard]] double spacing() const { return density.spacing().x; }
+
+    void make_level(int n, bool init) {
+        Volume d = make_grid(o, n, 1), c = make_grid(o, n, 3);
+        if (init) {
+            // Start as a faint gray fog: optical depth 0.05 per voxel.
+            const float sigma = static_cast<float>(0.05 / d.spacing().x);
+            std::fill(d.data<float>(), d.data<float>() + d.num_nodes(), sigma);
+            std::fill(c.data<float>(), c.data<float>() + 3 * c.num_nodes(), 0.5f);
+        } else {
+            resample(density, d);
+            resample(color, c);
+        }
+        density = std::move(d);
+        color = std::move(c);
+        m_d = make_grid(o, n, 1);
+        v_d = make_grid(o, n, 1);
+        m_c = make_grid(o, n, 3);
+        v_c = make_grid(o, n, 3);
+        adam_t = 0;
+        renderer = std::make_unique<DiffRenderer>(density, color, settings(1, 1));
+    }
+
+    /// The level the schedule puts iteration i on: equal shares of the iterations.
+    [[nodiscard]] int level_at(int i) const {
+        const auto L = static_cast<long>(levels.size());
+        return static_cast<int>(std::min<long>(L - 1, static_cast<long>(i) * L / o.iterations));
+    }
+
+    void adam(float* x, float* m, float* v, const std::vector<double>& g, double lr, double scale, double lo,
+              double hi) {
+        const double b1 = 1 - std::pow(kBeta1, static_cast<double>(adam_t));
+        const double b2 = 1 - std::pow(kBeta2, static_cast<double>(adam_t));
+        for (std::size_t i = 0; i < g.size(); ++i) {
+            const double gi = g[i];
+            m[i] = static_cast<float>(kBeta1 * m[i] + (1 - kBeta1) * gi);
+            v[i] = static_cast<float>(kBeta2 * v[i] + (1 - kBeta2) * gi * gi);
+            const double step = lr * (m[i] / b1) / (std::sqrt(v[i] / b2) + kEps);
+            const double p = std::clamp(scale * x[i] - step, lo, hi);
+            x[i] = static_cast<float>(p / scale);
+        }
+    }
+
+    FitStats step() {
+        const auto t0 = std::chrono::steady_clock::now();
+        if (level_at(iteration) > level) {  // (a resumed fit with more iterations never goes back)
+            level = level_at(iteration);
+            make_level(levels[static_cast<std::size_t>(level)], false);
+        }
+        const ViewSet& vs = *train;
+        const int W = vs.width(), H = vs.height();
+        const auto B = static_cast<std::size_t>(o.batch);
+        std::vector<Ray> rays(B);
+        std::vector<double> offsets(B);
+        std::vector<Rgb> target(B);
+        std::uniform_int_distribution<std::size_t> pick_view(0, vs.views.size() - 1);
+        std::uniform_int_distribution<int> px(0, W - 1), py(0, H - 1);
+        std::uniform_real_distribution<double> u01(0.0, 1.0);
+        for (std::size_t r = 0; r < B; ++r) {
+            const View& v = vs.views[pick_view(rng)];
+            const int x = px(rng), y = py(rng);
+            rays[r] = v.camera.generate(x, y, W, H);
+            offsets[r] = u01(rng);
+            const float* p = v.image.pixel(x, y);
+            for (int c = 0; c < 3; ++c) target[r][c] = p[c] * p[3] + o.background[c] * (1.0 - p[3]);
+        }
+        const auto fwd = renderer->forward(rays, offsets);
+        std::vector<RayAdjoint> adj(B);
+        double mse = 0;
+        const double norm = 1.0 / (3.0 * static_cast<double>(B));
+        for (std::size_t r = 0; r < B; ++r)
+            for (int c = 0; c < 3; ++c) {
+                const double e = fwd[r].radiance[c] - target[r][c];
+                mse += e * e * norm;
+                adj[r].radiance[c] = 2 * e * norm;
+            }
+        Gradients g = renderer->make_gradients();
+        renderer->backward(rays, fwd, adj, g, offsets);
+        // Density is optimised as optical depth per voxel p = σ·s: ∂L/∂p = ∂L/∂σ / s.
+        const double s = spacing();
+        for (double& x : g.density) x /= s;
+        double loss = mse;
+        loss += total_variation(density, s, o.tv_density, g.density);
+        loss += total_variation(color, 1.0, o.tv_color, g.color);
+        ++adam_t;
+        adam(density.data<float>(), m_d.data<float>(), v_d.data<float>(), g.density, o.lr_density, s, 0.0,
+             INFINITY);
+        adam(color.data<float>(), m_c.data<float>(), v_c.data<float>(), g.color, o.lr_color, 1.0, 0.0, 1.0);
+        ++iteration;
+        const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        return {iteration, levels[static_cast<std::size_t>(level)], loss,
+                -10.0 * std::log10(std::max(mse, 1e-30)), static_cast<double>(B) / std::max(secs, 1e-9)};
+    }
+};
+
+Fitter::Fitter(const ViewSet& train, FitOptions options) : impl_(std::make_unique<Impl>()) {
+    options.validate();
+    if (train.views.empty()) throw Error("fit", "the training set has no views");
+    impl_->train = &train;
+    impl_->o = options;
+    impl_->levels = level_sizes(options);
+    impl_->rng.seed(options.seed);
+    impl_->make_level(impl_->levels.front(), true);
+}
+
+Fitter::Fitter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Fitter::~Fitter() = default;
+Fitter::Fitter(Fitter&&) noexcept = default;
+Fitter& Fitter::operator=(Fitter&&) noexcept = default;
+
+FitStats Fitter::step() {
+    return impl_->step();
+}
+int Fitter::iteration() const {
+    return impl_->iteration;
+}
+bool Fitter::done() const {
+    return impl_->iteration >= impl_->o.iterations;
+}
+const FitOptions& Fitter::options() const {
+    return impl_->o;
+}
+const Volume& Fitter::density() const {
+    return impl_->density;
+}
+const Volume& Fitter::color() const {
+    return impl_->color;
+}
+RenderSettings Fitter::render_settings(int width, int height) const {
+    return impl_->settings(width, height);
+}
+
+double Fitter::psnr(const ViewSet& views) const {
+    if (views.views.empty()) throw Error("fit", "the view set has no views");
+    const RenderSettings s = impl_->settings(views.width(), views.height());
+    const Renderer r(impl_->density, impl_->color, s);
+    double sum = 0;
+    for (const View& v : views.views) {
+        const Image img = r.render(v.camera);
+        double se = 0;
+        for (std::size_t p = 0; p < img.rgba.size(); p += 4) {
+            const double a = v.image.rgba[p + 3];
+            for (std::size_t c = 0; c < 3; ++c) {
+                const double t = v.image.rgba[p + c] * a + impl_->o.background[c] * (1.0 - a);
+                const double e = img.rgba[p + c] - t;
+                se += e * e;
+            }
+        }
+        const double mse = se / (3.0 * static_cast<double>(img.rgba.size() / 4));
+        sum += -10.0 * std::log10(std::max(mse, 1e-30));
+    }
+    return sum / static_cast<double>(views.views.size());
+}
+
+void Fitter::save_checkpoint(const fs::path& dir) const {
+    fs::create_directories(dir);
+    const Impl& im = *impl_;
+    write_nrrd(dir / "density.nrrd", im.density, false);
+    write_nrrd(dir / "color.nrrd", im.color, false);
+    write_nrrd(dir / "adam_m_density.nrrd", im.m_d, false);
+    write_nrrd(dir / "adam_v_density.nrrd", im.v_d, false);
+    write_nrrd(dir / "adam_m_color.nrrd", im.m_c, false);
+    write_nrrd(dir / "adam_v_color.nrrd", im.v_c, false);
+    std::ostringstream rng;
+    rng << im.rng;
+    const nlohmann::json j{{"format", "fathom-fit-checkpoint/1"},
+                           {"iteration", im.iteration},
+                           {"level", im.level},
+                           {"adam_t", im.adam_t},
+                           {"rng", rng.str()},
+                           {"grid", im.o.grid},
+                           {"start_grid", im.o.start_grid},
+                           {"batch", im.o.batch},
+                           {"seed", im.o.seed}};
+    write_text_file(dir / "state.json", j.dump(2) + "\n");  // last: a complete checkpoint has it
+}
+
+Fitter Fitter::resume(const ViewSet& train, FitOptions options, const fs::path& dir) {
+    Fitter f(train, options);
+    Impl& im = *f.impl_;
+    const fs::path state = dir / "state.json";
+    const std::string subject = state.string();
+    nlohmann::json j;
+    long adam_t = 0;
+    try {
+        std::ifstream in(state);
+        if (!in) throw Error(subject, "no checkpoint here (state.json is missing)");
+        j = nlohmann::json::parse(in);
+        if (j.value("format", "") != "fathom-fit-checkpoint/1")
+            throw Error(subject, "not a fathom fit checkpoint");
+        if (j.at("grid").get<int>() != options.grid || j.at("start_grid").get<int>() != options.start_grid ||
+            j.at("batch").get<int>() != options.batch)
+            throw Error(subject, "the checkpoint was made with another --grid, --start-grid or --batch");
+        im.iteration = j.at("iteration").get<int>();
+        im.level = j.at("level").get<int>();
+        adam_t = j.at("adam_t").get<long>();
+        std::istringstream rng(j.at("rng").get<std::string>());
+        rng >> im.rng;
+        if (!rng) throw Error(subject, "the random state does not read");
+    } catch (const nlohmann::json::exception& e) {
+        throw Error(subject, std::string("broken checkpoint: ") + e.what());
+    }
+    if (im.level < 0 || im.level >= static_cast<int>(im.levels.size()) || im.iteration < 0)
+        throw Error(subject, "iteration or level out of range");
+    im.make_level(im.levels[static_cast<std::size_t>(im.level)], true);
+    im.adam_t = adam_t;  // (make_level starts a grid's Adam count at 0)
+    auto load = [&](const char* name, Volume& into) {
+        Volume v = read_volume(dir / name);
+        if (v.dims() != into.dims() || v.components() != into.components() || v.dtype() != DType::f32)
+            throw Error((dir / name).string(), "does not match the checkpoint's grid");
+        v.set_origin(into.origin());
+        v.set_axes(into.axes());
+        into = std::move(v);
+    };
+    load("density.nrrd", im.density);
+    load("color.nrrd", im.color);
+    load("adam_m_density.nrrd", im.m_d);
+    load("adam_v_density.nrrd", im.v_d);
+    load("adam_m_color.nrrd", im.m_c);
+    load("adam_v_color.nrrd", im.v_c);
+    im.renderer = std::make_unique<DiffRenderer>(im.density, im.color, im.settings(1, 1));
+    return f;
+}
+
+}  // namespace fathom
