@@ -356,6 +356,9 @@ TEST(Differentiable, RefusesWhatIsNotDifferentiable) {
                        {"3 components"});
     const DiffRenderer r(density, color, RenderSettings{});
     Gradients g = r.make_gradients();
+    Gradients empty;
+    test::expect_error([&] { r.backward(Ray{}, RayResult{}, RayAdjoint{}, empty); }, "backward",
+                       {"sizes", "make_gradients"});
     std::vector<float> wrong(3);
     test::expect_error([&] { r.backward(Camera{}, wrong, g); }, "backward", {"4 floats per pixel"});
 }

@@ -121,6 +121,73 @@ TEST(Fit, ResumingGivesTheUninterruptedResult) {
                        {"no checkpoint"});
 }
 
+/// A smooth scalar field over [0, 1] (a tilted ramp with a bump), 16³.
+Volume scalar_field() {
+    Volume v({16, 16, 16}, DType::f32);
+    for (std::int64_t k = 0; k < 16; ++k)
+        for (std::int64_t j = 0; j < 16; ++j)
+            for (std::int64_t i = 0; i < 16; ++i) {
+                const double r = std::hypot(i - 7.5, j - 7.5, k - 7.5);
+                v.set_value(i, j, k,
+                            std::clamp(0.5 * (i + k) / 15.0 + 0.5 * std::exp(-r * r / 20.0), 0.0, 1.0));
+            }
+    return v;
+}
+
+TEST(FitTf, RecoversTransferFunctionValuesFromAFlatStart) {
+    const Volume vol = scalar_field();
+    TransferFunction truth;
+    truth.alpha_kind = TransferFunction::Alpha::opacity;
+    truth.alpha_points = {{0.0, 0.02}, {0.35, 0.15}, {0.7, 0.05}, {1.0, 0.3}};
+    truth.color_points = {{0.0, {0.9, 0.2, 0.1}}, {0.5, {0.2, 0.8, 0.3}}, {1.0, {0.2, 0.3, 0.95}}};
+    // Views rendered with the truth (straight alpha, as a PNG set holds them).
+    RenderSettings s;
+    s.width = s.height = 24;
+    s.transparent = true;
+    s.step = 1.0;
+    const Renderer r(vol, truth, s);
+    const Bounds b = volume_bounds(vol);
+    ViewSet views;
+    views.camera_angle_x = 0.5;
+    for (int i = 0; i < 12; ++i) {
+        View v;
+        const double z = 1.0 - (2.0 * i + 1.0) / 12;
+        v.camera = Camera::orbit(i * 137.5077640500378, std::asin(z) * 180.0 / 3.14159265358979, 3.0,
+                                 b.center, b.radius);
+        v.image = r.render(v.camera);
+        for (std::size_t p = 0; p < v.image.rgba.size(); p += 4)
+            for (std::size_t c = 0; c < 3; ++c)
+                v.image.rgba[p + c] =
+                    v.image.rgba[p + 3] > 0 ? v.image.rgba[p + c] / v.image.rgba[p + 3] : 0.0f;
+        views.views.push_back(std::move(v));
+    }
+    TfFitOptions o;
+    o.iterations = 300;
+    o.batch = 512;
+    o.threads = 1;
+    o.lr_alpha = 0.01;
+    o.lr_color = 0.02;
+    TfFitter f(vol, flattened(truth, 0.05), views, o);
+    const double before = f.psnr(views);
+    while (!f.done()) (void)f.step();
+    const double after = f.psnr(views);
+    const TransferFunction& got = f.transfer_function();
+    double worst_a = 0, worst_c = 0;
+    for (std::size_t i = 0; i < 4; ++i)
+        worst_a = std::max(worst_a, std::abs(got.alpha_points[i].second - truth.alpha_points[i].second));
+    for (std::size_t i = 0; i < 3; ++i)
+        for (int c = 0; c < 3; ++c)
+            worst_c =
+                std::max(worst_c, std::abs(got.color_points[i].second[c] - truth.color_points[i].second[c]));
+    std::printf("[fit-tf] PSNR %.2f -> %.2f dB; largest value error: opacity %.4f, color %.4f\n", before,
+                after, worst_a, worst_c);
+    EXPECT_GT(after, before + 15.0);
+    // The views are exact renders (floats, not 8-bit PNGs): the values come back.
+    EXPECT_LT(worst_a, 2e-3);
+    EXPECT_LT(worst_c, 5e-3);
+    EXPECT_EQ(got.alpha_points[1].first, 0.35);  // positions stay
+}
+
 TEST(Fit, OptionsAreChecked) {
     const Truth t = make_truth();
     const ViewSet train = render_views(t, 2, 8, 0.0);

@@ -18,5 +18,6 @@ void add_tf_convert_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 void add_views_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
+void add_fit_tf_command(CLI::App& app);
 
 }  // namespace fathom::cli

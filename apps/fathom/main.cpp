@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
     fathom::cli::add_bench_command(app);
     fathom::cli::add_views_command(app);
     fathom::cli::add_fit_command(app);
+    fathom::cli::add_fit_tf_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

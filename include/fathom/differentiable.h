@@ -40,7 +40,8 @@ struct Gradients {
     /// Pre-classified grids: ∂L/∂σ per node, ∂L/∂c per node and channel
     /// (node-major, as a 3-component Volume stores it).
     std::vector<double> density, color;
-    /// Scalar volume: ∂L/∂v per node.
+    /// Scalar volume: ∂L/∂v per node. Left empty, the voxels' gradient is
+    /// not computed (fitting the transfer function alone).
     std::vector<double> scalar;
     /// Transfer function: per alpha point, ∂L/∂(the value as written: opacity
     /// or extinction); per color point, ∂L/∂(r, g, b) (or q).

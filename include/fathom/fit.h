@@ -10,6 +10,7 @@
 
 #include "fathom/math.h"
 #include "fathom/render.h"
+#include "fathom/transfer_function.h"
 #include "fathom/views.h"
 #include "fathom/volume.h"
 
@@ -86,5 +87,48 @@ private:
     explicit Fitter(std::unique_ptr<Impl> impl);
     std::unique_ptr<Impl> impl_;
 };
+
+/// Transfer-function fitting: the control values of a TF (positions fixed)
+/// fitted to a view set of a scalar volume.
+struct TfFitOptions {
+    int iterations = 300;
+    int batch = 4096;
+    /// Adam step sizes: alpha values (opacity, or extinction in 1/world unit
+    /// when the TF is written so) and color values.
+    double lr_alpha = 0.01, lr_color = 0.02;
+    Rgb background{1, 1, 1};
+    IntegratorKind integrator = IntegratorKind::preintegrated;
+    /// Sample step in units of the volume's smallest spacing.
+    double step = 1.0;
+    std::uint32_t seed = 1;
+    int threads = 0;
+    void validate() const;
+};
+
+class TfFitter {
+public:
+    /// `start` gives the control positions, the alpha kind and the start
+    /// values. The volume and the view set must outlive the fitter.
+    TfFitter(const Volume& volume, TransferFunction start, const ViewSet& views, TfFitOptions options);
+    ~TfFitter();
+    TfFitter(TfFitter&&) noexcept;
+    TfFitter& operator=(TfFitter&&) noexcept;
+
+    FitStats step();
+    [[nodiscard]] int iteration() const;
+    [[nodiscard]] bool done() const;
+    [[nodiscard]] const TransferFunction& transfer_function() const;
+    [[nodiscard]] RenderSettings render_settings(int width, int height) const;
+    [[nodiscard]] double psnr(const ViewSet& views) const;
+
+    struct Impl;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+/// `tf` with every alpha value set to `alpha` and every color to gray 0.5:
+/// the flat start of a TF fit, keeping the positions.
+TransferFunction flattened(TransferFunction tf, double alpha);
 
 }  // namespace fathom

@@ -178,8 +178,10 @@ struct ScalarMed {
     }
     [[nodiscard]] bool associated() const { return tf->associated(); }
 
-    /// dL/dv at a point to the nodes around it.
+    /// dL/dv at a point to the nodes around it (unless g.scalar is empty:
+    /// the caller wants the transfer function's gradient only).
     void scatter_scalar(const GridCell& cell, double dv, Gradients& g) const {
+        if (g.scalar.empty()) return;
         const Corners k = corners(cell, grid.nx, grid.ny);
         for (int j = 0; j < 8; ++j) g.scalar[static_cast<std::size_t>(k.node[j])] += k.w[j] * dv;
     }
@@ -585,6 +587,20 @@ struct DiffRenderer::Impl {
                       [&](auto& seg, std::int64_t n) { r = march_forward(n, termination(), base.bg, seg); });
         return r;
     }
+    /// Throws unless g has this renderer's sizes (a scalar volume's voxel
+    /// gradient may be empty: not wanted).
+    void check_sizes(const Gradients& g) const {
+        bool ok = true;
+        if (scalar != nullptr) {
+            const auto n = static_cast<std::size_t>(scalar->num_nodes());
+            ok = (g.scalar.empty() || g.scalar.size() == n) && g.tf_alpha.size() == alpha_points &&
+                 g.tf_color.size() == color_points;
+        } else {
+            const auto n = static_cast<std::size_t>(density->num_nodes());
+            ok = g.density.size() == n && g.color.size() == 3 * n;
+        }
+        if (!ok) throw Error("backward", "the gradients do not have this renderer's sizes (use make_gradients)");
+    }
     void backward(const Ray& ray, const RayResult& fwd, const RayAdjoint& adj, Gradients& g,
                   double offset) const {
         with_segments(ray, offset, &g,
@@ -712,10 +728,22 @@ RayResult DiffRenderer::forward(const Ray& ray, double sample_offset) const {
 
 void DiffRenderer::backward(const Ray& ray, const RayResult& forward, const RayAdjoint& adjoint, Gradients& g,
                             double sample_offset) const {
+    impl_->check_sizes(g);
     impl_->backward(ray, forward, adjoint, g, sample_offset);
 }
 
 namespace {
+
+/// Zero gradients with the sizes of g.
+Gradients sized_like(const Gradients& g) {
+    Gradients r;
+    r.density.assign(g.density.size(), 0.0);
+    r.color.assign(g.color.size(), 0.0);
+    r.scalar.assign(g.scalar.size(), 0.0);
+    r.tf_alpha.assign(g.tf_alpha.size(), 0.0);
+    r.tf_color.assign(g.tf_color.size(), Rgb{0, 0, 0});
+    return r;
+}
 
 void check_offsets(std::span<const Ray> rays, std::span<const double> offsets) {
     if (!offsets.empty() && offsets.size() != rays.size())
@@ -739,10 +767,11 @@ void DiffRenderer::backward(std::span<const Ray> rays, std::span<const RayResult
                             std::span<const RayAdjoint> adjoints, Gradients& g,
                             std::span<const double> offsets) const {
     check_offsets(rays, offsets);
+    impl_->check_sizes(g);
     if (forward.size() != rays.size() || adjoints.size() != rays.size())
         throw Error("backward", "rays, forward results and adjoints differ in number");
     const int nt = impl_->threads(rays.size());
-    std::vector<Gradients> part(static_cast<std::size_t>(nt), make_gradients());
+    std::vector<Gradients> part(static_cast<std::size_t>(nt), sized_like(g));
     impl_->parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t i = b; i < e; ++i)
             impl_->backward(rays[i], forward[i], adjoints[i], part[static_cast<std::size_t>(t)],
@@ -775,8 +804,9 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
     if (adjoint.size() != 4 * count)
         throw Error("backward", "the adjoint image must hold 4 floats per pixel (" +
                                     std::to_string(4 * count) + "), got " + std::to_string(adjoint.size()));
+    impl_->check_sizes(g);
     const int nt = impl_->threads(count);
-    std::vector<Gradients> part(static_cast<std::size_t>(nt), make_gradients());
+    std::vector<Gradients> part(static_cast<std::size_t>(nt), sized_like(g));
     impl_->parallel_blocks(count, nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t k = b; k < e; ++k) {
             const float* a = &adjoint[4 * k];

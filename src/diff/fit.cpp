@@ -14,6 +14,7 @@
 #include "fathom/error.h"
 #include "fathom/io.h"
 
+#include "diff/fit_common.h"
 #include "volume/sampler.h"
 
 namespace fathom {
@@ -39,8 +40,6 @@ void FitOptions::validate() const {
 }
 
 namespace {
-
-constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEps = 1e-8;
 
 /// Grid sizes from start_grid doubling up to grid (the last is grid).
 std::vector<int> level_sizes(const FitOptions& o) {
@@ -164,55 +163,19 @@ struct Fitter::Impl {
         return static_cast<int>(std::min<long>(L - 1, static_cast<long>(i) * L / o.iterations));
     }
 
-    void adam(float* x, float* m, float* v, const std::vector<double>& g, double lr, double scale, double lo,
-              double hi) {
-        const double b1 = 1 - std::pow(kBeta1, static_cast<double>(adam_t));
-        const double b2 = 1 - std::pow(kBeta2, static_cast<double>(adam_t));
-        for (std::size_t i = 0; i < g.size(); ++i) {
-            const double gi = g[i];
-            m[i] = static_cast<float>(kBeta1 * m[i] + (1 - kBeta1) * gi);
-            v[i] = static_cast<float>(kBeta2 * v[i] + (1 - kBeta2) * gi * gi);
-            const double step = lr * (m[i] / b1) / (std::sqrt(v[i] / b2) + kEps);
-            const double p = std::clamp(scale * x[i] - step, lo, hi);
-            x[i] = static_cast<float>(p / scale);
-        }
-    }
-
     FitStats step() {
         const auto t0 = std::chrono::steady_clock::now();
         if (level_at(iteration) > level) {  // (a resumed fit with more iterations never goes back)
             level = level_at(iteration);
             make_level(levels[static_cast<std::size_t>(level)], false);
         }
-        const ViewSet& vs = *train;
-        const int W = vs.width(), H = vs.height();
         const auto B = static_cast<std::size_t>(o.batch);
-        std::vector<Ray> rays(B);
-        std::vector<double> offsets(B);
-        std::vector<Rgb> target(B);
-        std::uniform_int_distribution<std::size_t> pick_view(0, vs.views.size() - 1);
-        std::uniform_int_distribution<int> px(0, W - 1), py(0, H - 1);
-        std::uniform_real_distribution<double> u01(0.0, 1.0);
-        for (std::size_t r = 0; r < B; ++r) {
-            const View& v = vs.views[pick_view(rng)];
-            const int x = px(rng), y = py(rng);
-            rays[r] = v.camera.generate(x, y, W, H);
-            offsets[r] = u01(rng);
-            const float* p = v.image.pixel(x, y);
-            for (int c = 0; c < 3; ++c) target[r][c] = p[c] * p[3] + o.background[c] * (1.0 - p[3]);
-        }
-        const auto fwd = renderer->forward(rays, offsets);
-        std::vector<RayAdjoint> adj(B);
-        double mse = 0;
-        const double norm = 1.0 / (3.0 * static_cast<double>(B));
-        for (std::size_t r = 0; r < B; ++r)
-            for (int c = 0; c < 3; ++c) {
-                const double e = fwd[r].radiance[c] - target[r][c];
-                mse += e * e * norm;
-                adj[r].radiance[c] = 2 * e * norm;
-            }
+        const fit::Batch batch = fit::sample_batch(*train, B, o.background, rng);
+        const auto fwd = renderer->forward(batch.rays, batch.offsets);
+        std::vector<RayAdjoint> adj;
+        const double mse = fit::mse_adjoints(fwd, batch.target, adj);
         Gradients g = renderer->make_gradients();
-        renderer->backward(rays, fwd, adj, g, offsets);
+        renderer->backward(batch.rays, fwd, adj, g, batch.offsets);
         // Density is optimised as optical depth per voxel p = σ·s: ∂L/∂p = ∂L/∂σ / s.
         const double s = spacing();
         for (double& x : g.density) x /= s;
@@ -220,13 +183,14 @@ struct Fitter::Impl {
         loss += total_variation(density, s, o.tv_density, g.density);
         loss += total_variation(color, 1.0, o.tv_color, g.color);
         ++adam_t;
-        adam(density.data<float>(), m_d.data<float>(), v_d.data<float>(), g.density, o.lr_density, s, 0.0,
-             INFINITY);
-        adam(color.data<float>(), m_c.data<float>(), v_c.data<float>(), g.color, o.lr_color, 1.0, 0.0, 1.0);
+        fit::adam_update(density.data<float>(), m_d.data<float>(), v_d.data<float>(), g.density.data(),
+                         g.density.size(), o.lr_density, adam_t, s, 0.0, INFINITY);
+        fit::adam_update(color.data<float>(), m_c.data<float>(), v_c.data<float>(), g.color.data(),
+                         g.color.size(), o.lr_color, adam_t, 1.0, 0.0, 1.0);
         ++iteration;
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        return {iteration, levels[static_cast<std::size_t>(level)], loss,
-                -10.0 * std::log10(std::max(mse, 1e-30)), static_cast<double>(B) / std::max(secs, 1e-9)};
+        return {iteration, levels[static_cast<std::size_t>(level)], loss, fit::psnr_of(mse),
+                static_cast<double>(B) / std::max(secs, 1e-9)};
     }
 };
 
@@ -271,22 +235,7 @@ double Fitter::psnr(const ViewSet& views) const {
     if (views.views.empty()) throw Error("fit", "the view set has no views");
     const RenderSettings s = impl_->settings(views.width(), views.height());
     const Renderer r(impl_->density, impl_->color, s);
-    double sum = 0;
-    for (const View& v : views.views) {
-        const Image img = r.render(v.camera);
-        double se = 0;
-        for (std::size_t p = 0; p < img.rgba.size(); p += 4) {
-            const double a = v.image.rgba[p + 3];
-            for (std::size_t c = 0; c < 3; ++c) {
-                const double t = v.image.rgba[p + c] * a + impl_->o.background[c] * (1.0 - a);
-                const double e = img.rgba[p + c] - t;
-                se += e * e;
-            }
-        }
-        const double mse = se / (3.0 * static_cast<double>(img.rgba.size() / 4));
-        sum += -10.0 * std::log10(std::max(mse, 1e-30));
-    }
-    return sum / static_cast<double>(views.views.size());
+    return fit::view_set_psnr(views, impl_->o.background, [&](const Camera& c) { return r.render(c); });
 }
 
 void Fitter::save_checkpoint(const fs::path& dir) const {

@@ -28,9 +28,11 @@ struct Ctx {
 void only_keys(const json& j, std::initializer_list<const char*> keys, const std::string& where,
                const Ctx& cx) {
     if (!j.is_object()) cx.fail(where + " must be a JSON object");
-    for (const auto& [key, value] : j.items())
+    for (const auto& item : j.items()) {
+        const std::string& key = item.key();
         if (std::none_of(keys.begin(), keys.end(), [&](const char* k) { return key == k; }))
             cx.fail("unknown key '" + key + "' in " + where);
+    }
 }
 
 double number(const json& j, const std::string& where, const Ctx& cx) {

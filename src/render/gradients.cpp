@@ -8,7 +8,7 @@
 namespace fathom {
 
 Volume node_gradients(const Volume& v, const Mat3& world_to_index, int threads) {
-    const auto [nx, ny, nz] = v.dims();
+    const std::int64_t nx = v.dims()[0], ny = v.dims()[1], nz = v.dims()[2];  // (lambdas capture them)
     Volume g(v.dims(), DType::f32, 3);
     float* out = g.data<float>();
     auto slabs = [&](std::int64_t k0, std::int64_t k1) {
