@@ -92,9 +92,10 @@ public:
     [[nodiscard]] std::vector<RayResult> forward(std::span<const Ray> rays,
                                                  std::span<const double> offsets = {}) const;
     /// Adds the gradients of many rays into g. Each thread sums a fixed,
-    /// contiguous block of rays into its own buffer; the buffers are added in
-    /// thread order, so the result is deterministic for a given thread count
-    /// (and, with one thread and g zero, equals the one-ray calls in order).
+    /// contiguous block of rays: the first into g itself, the others into
+    /// their own buffers, added to g in thread order at the end. The result
+    /// is deterministic for a given thread count (and, with one thread,
+    /// equals the one-ray calls in order).
     void backward(std::span<const Ray> rays, std::span<const RayResult> forward,
                   std::span<const RayAdjoint> adjoints, Gradients& g, std::span<const double> offsets = {}) const;
 

@@ -599,7 +599,8 @@ struct DiffRenderer::Impl {
             const auto n = static_cast<std::size_t>(density->num_nodes());
             ok = g.density.size() == n && g.color.size() == 3 * n;
         }
-        if (!ok) throw Error("backward", "the gradients do not have this renderer's sizes (use make_gradients)");
+        if (!ok)
+            throw Error("backward", "the gradients do not have this renderer's sizes (use make_gradients)");
     }
     void backward(const Ray& ray, const RayResult& fwd, const RayAdjoint& adj, Gradients& g,
                   double offset) const {
@@ -745,6 +746,22 @@ Gradients sized_like(const Gradients& g) {
     return r;
 }
 
+/// Per-thread gradient buffers: thread 0 adds into g itself, the others
+/// into zero buffers of g's sizes, added to g in thread order at the end.
+class ThreadBuffers {
+public:
+    ThreadBuffers(Gradients& g, int threads)
+        : g_(g), part_(static_cast<std::size_t>(threads - 1), sized_like(g)) {}
+    Gradients& operator[](int t) { return t == 0 ? g_ : part_[static_cast<std::size_t>(t - 1)]; }
+    void reduce() {
+        for (const Gradients& p : part_) g_ += p;
+    }
+
+private:
+    Gradients& g_;
+    std::vector<Gradients> part_;
+};
+
 void check_offsets(std::span<const Ray> rays, std::span<const double> offsets) {
     if (!offsets.empty() && offsets.size() != rays.size())
         throw Error("differentiable rendering", "rays and sample offsets differ in number");
@@ -771,13 +788,12 @@ void DiffRenderer::backward(std::span<const Ray> rays, std::span<const RayResult
     if (forward.size() != rays.size() || adjoints.size() != rays.size())
         throw Error("backward", "rays, forward results and adjoints differ in number");
     const int nt = impl_->threads(rays.size());
-    std::vector<Gradients> part(static_cast<std::size_t>(nt), sized_like(g));
+    ThreadBuffers buf(g, nt);
     impl_->parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t i = b; i < e; ++i)
-            impl_->backward(rays[i], forward[i], adjoints[i], part[static_cast<std::size_t>(t)],
-                            offsets.empty() ? -1.0 : offsets[i]);
+            impl_->backward(rays[i], forward[i], adjoints[i], buf[t], offsets.empty() ? -1.0 : offsets[i]);
     });
-    for (const Gradients& p : part) g += p;
+    buf.reduce();
 }
 
 Image DiffRenderer::render(const Camera& camera) const {
@@ -806,7 +822,7 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
                                     std::to_string(4 * count) + "), got " + std::to_string(adjoint.size()));
     impl_->check_sizes(g);
     const int nt = impl_->threads(count);
-    std::vector<Gradients> part(static_cast<std::size_t>(nt), sized_like(g));
+    ThreadBuffers buf(g, nt);
     impl_->parallel_blocks(count, nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t k = b; k < e; ++k) {
             const float* a = &adjoint[4 * k];
@@ -816,10 +832,10 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
             const double off = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
             const Ray ray = camera.generate(x, y, s.width, s.height);
             const RayResult fwd = impl_->forward(ray, off);  // in double, as the backward march needs
-            impl_->backward(ray, fwd, {{a[0], a[1], a[2]}, a[3]}, part[static_cast<std::size_t>(t)], off);
+            impl_->backward(ray, fwd, {{a[0], a[1], a[2]}, a[3]}, buf[t], off);
         }
     });
-    for (const Gradients& p : part) g += p;
+    buf.reduce();
 }
 
 }  // namespace fathom

@@ -123,6 +123,7 @@ struct Fitter::Impl {
     Volume density, color;      // σ (1/world unit), c
     Volume m_d, v_d, m_c, v_c;  // Adam moments (density in the scaled unit)
     std::unique_ptr<DiffRenderer> renderer;
+    Gradients g;  // kept from one iteration to the next (no reallocation)
 
     [[nodiscard]] RenderSettings settings(int w, int h) const {
         RenderSettings s;
@@ -155,6 +156,7 @@ struct Fitter::Impl {
         v_c = make_grid(o, n, 3);
         adam_t = 0;
         renderer = std::make_unique<DiffRenderer>(density, color, settings(1, 1));
+        g = renderer->make_gradients();
     }
 
     /// The level the schedule puts iteration i on: equal shares of the iterations.
@@ -174,7 +176,7 @@ struct Fitter::Impl {
         const auto fwd = renderer->forward(batch.rays, batch.offsets);
         std::vector<RayAdjoint> adj;
         const double mse = fit::mse_adjoints(fwd, batch.target, adj);
-        Gradients g = renderer->make_gradients();
+        g.zero();
         renderer->backward(batch.rays, fwd, adj, g, batch.offsets);
         // Density is optimised as optical depth per voxel p = σ·s: ∂L/∂p = ∂L/∂σ / s.
         const double s = spacing();
