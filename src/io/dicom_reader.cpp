@@ -258,6 +258,11 @@ public:
             const unsigned char* p = at(off, 6);
             explicit_ = is_vr(p + 4);
             if (ts.empty() && !explicit_ && p[0] == 0 && p[1] != 0) big_ = true;
+            // Without a file meta group the transfer syntax is implicit VR
+            // (ACR-NEMA, raw data sets); GDCM's guess for an explicit-VR one
+            // can end on an assertion (found by fuzzing), so it is refused.
+            if (ts.empty() && explicit_)
+                corrupt("an explicit-VR data set without a file meta group (not a DICOM Part 10 file)");
         }
         layout_.walked = true;
         dataset(off, size_, false, explicit_, 0);

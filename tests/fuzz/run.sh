@@ -35,8 +35,14 @@ for f in "$data"/mri_colin27_ch2better/*.nii.gz; do
     [ -f "$f" ] && { gzip -dc "$f" | head -c 1048576 >"$corpus/nifti/$(basename "$f" .gz)" || true; }
 done
 for r in metaimage raw; do mkdir -p "$corpus/$r"; done
+failed=()
 for r in "${readers[@]}"; do
     echo "== fuzz_$r for ${seconds}s"
     ./build-fuzz/fuzz_"$r" -max_total_time="$seconds" -rss_limit_mb=4096 -max_len=1048576 \
-        -artifact_prefix=build-fuzz/findings/"$r"- "$corpus/$r"
+        -artifact_prefix=build-fuzz/findings/"$r"- "$corpus/$r" || failed+=("$r")
 done
+if [ ${#failed[@]} -gt 0 ]; then
+    echo "== findings in: ${failed[*]} (build-fuzz/findings/)"
+    exit 1
+fi
+echo "== no findings"

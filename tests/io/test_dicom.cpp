@@ -896,4 +896,17 @@ TEST(DicomErrors, UnsupportedAndAbsurdImages) {
     expect_error([&] { read_dicom(dir / "short"); }, dir / "short", {"s0.dcm", "pixel data"});
 }
 
+TEST(DicomErrors, ExplicitVrWithoutMetaGroupIsRefused) {
+    // Found by fuzzing: one explicit-VR UN element and no file meta group
+    // made GDCM abort on an assertion.
+    TempDir dir;
+    write_file(dir / "raw.dcm", std::string("\x08\x00\x10\x00UN\x00\x00\x02\x00\x00\x00 ?", 14));
+    expect_error([&] { read_dicom(dir / "raw.dcm"); }, dir / "raw.dcm", {"not a DICOM Part 10 file"});
+    // The same element in a Part 10 file is read past (and the file has no image).
+    Dcm d;
+    d.str(0x0008, 0x0010, "UN", " ?");
+    write_file(dir / "p10.dcm", d.file(kMrClass));
+    EXPECT_THROW(read_dicom(dir / "p10.dcm"), Error);
+}
+
 }  // namespace
