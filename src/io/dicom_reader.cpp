@@ -249,6 +249,11 @@ public:
     Layout run() {
         std::uint64_t off = 0;
         if (size_ >= 132 && std::memcmp(at(128, 4), "DICM", 4) == 0) off = 132;
+        // A file meta group belongs after the preamble and "DICM" (GDCM's
+        // reading of one without them can end on an assertion: fuzzing).
+        if (off == 0 && size_ >= 2 && at(0, 2)[0] == 0x02 && at(0, 2)[1] == 0x00)
+            corrupt(
+                "a file meta group without the 128-byte preamble and \"DICM\" (not a DICOM Part 10 file)");
         std::string ts;
         off = meta(off, ts);
         if (off >= size_) truncated("the file meta information (no data set follows it)");
@@ -284,8 +289,14 @@ private:
         std::snprintf(buf, sizeof buf, "(%04X,%04X)", g, e);
         return buf;
     }
+    /// One of the standard's value representations (PS3.5 6.2).
     static bool is_vr(const unsigned char* p) {
-        return p[0] >= 'A' && p[0] <= 'Z' && p[1] >= 'A' && p[1] <= 'Z';
+        static constexpr std::array<const char*, 34> kVRs{
+            "AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO", "LT",
+            "OB", "OD", "OF", "OL", "OV", "OW", "PN", "SH", "SL", "SQ", "SS", "ST",
+            "SV", "TM", "UC", "UI", "UL", "UN", "UR", "US", "UT", "UV"};
+        return std::any_of(kVRs.begin(), kVRs.end(),
+                           [&](const char* v) { return p[0] == v[0] && p[1] == v[1]; });
     }
     static bool long_vr(const unsigned char* p) {
         static constexpr std::array<const char*, 13> kLong{"OB", "OD", "OF", "OL", "OV", "OW", "SQ",
@@ -326,7 +337,8 @@ private:
             const std::uint16_t e = u16(p + 2, false);
             std::uint64_t len = 0, hdr = 8;
             if (!is_vr(p + 4)) {
-                len = u32(p + 4, false);
+                corrupt("file meta element " + tag_name(0x0002, u16(p + 2, false)) +
+                        " has no valid VR (the meta group is explicit VR)");
             } else if (long_vr(p + 4)) {
                 if (off + 12 > size_) truncated("the file meta information");
                 len = u32(at(off + 8, 4), false);

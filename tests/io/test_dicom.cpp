@@ -907,6 +907,17 @@ TEST(DicomErrors, ExplicitVrWithoutMetaGroupIsRefused) {
     d.str(0x0008, 0x0010, "UN", " ?");
     write_file(dir / "p10.dcm", d.file(kMrClass));
     EXPECT_THROW(read_dicom(dir / "p10.dcm"), Error);
+    // Also found by fuzzing: a file meta group without the preamble, with a
+    // made-up VR, made GDCM abort.
+    write_file(dir / "meta.dcm", std::string("\x02\x00\x0c\x00QQ", 6) + std::string(130, '\0'));
+    expect_error([&] { read_dicom(dir / "meta.dcm"); }, dir / "meta.dcm",
+                 {"preamble", "not a DICOM Part 10 file"});
+    std::string bad = d.file(kMrClass);
+    const auto vr = bad.find("UI", 132);  // the first meta element's VR
+    ASSERT_NE(vr, std::string::npos);
+    bad.replace(vr, 2, "QQ");
+    write_file(dir / "badvr.dcm", bad);
+    expect_error([&] { read_dicom(dir / "badvr.dcm"); }, dir / "badvr.dcm", {"no valid VR"});
 }
 
 }  // namespace
