@@ -145,10 +145,10 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--iterations", a->o.iterations, "Iterations (ray batches) in all (default 2000)");
     cmd->add_option("--batch", a->o.batch, "Rays per iteration (default 4096)");
     cmd->add_option("--lr-density", a->o.lr_density,
-                    "Adam step of the density, optical depth per voxel (0.1)");
-    cmd->add_option("--lr-color", a->o.lr_color, "Adam step of the color (0.03)");
-    cmd->add_option("--tv-density", a->o.tv_density, "Total-variation weight of the density (1e-3)");
-    cmd->add_option("--tv-color", a->o.tv_color, "Total-variation weight of the color (1e-3)");
+                    "Adam step of the density, optical depth per voxel (0.01)");
+    cmd->add_option("--lr-color", a->o.lr_color, "Adam step of the color (0.01)");
+    cmd->add_option("--tv-density", a->o.tv_density, "Total-variation weight of the density (1e-4)");
+    cmd->add_option("--tv-color", a->o.tv_color, "Total-variation weight of the color (1e-4)");
     cmd->add_option("--background", a->background,
                     "What transparent pixels show: white, black or R,G,B (white)");
     cmd->add_option("--bounds", a->bounds,

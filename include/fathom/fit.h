@@ -28,10 +28,10 @@ struct FitOptions {
     int batch = 4096;
     /// Adam step sizes: density in optical depth per voxel of the current
     /// grid (σ·spacing), color in color units.
-    double lr_density = 0.1, lr_color = 0.03;
+    double lr_density = 0.01, lr_color = 0.01;
     /// Total variation (mean over nodes of the squared differences to the
     /// next node along x, y and z), of the same scaled density and of color.
-    double tv_density = 1e-3, tv_color = 1e-3;
+    double tv_density = 1e-4, tv_color = 1e-4;
     /// What the images' transparent parts show (alpha-composited targets).
     Rgb background{1, 1, 1};
     IntegratorKind integrator = IntegratorKind::alpha;

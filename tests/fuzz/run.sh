@@ -41,8 +41,12 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-allocator_may_return_null=1}
 failed=()
 for r in "${readers[@]}"; do
     echo "== fuzz_$r for ${seconds}s"
+    # OpenVDB 10 leaks the node it was reading when a tree fails to read
+    # (docs/formats.md): not fathom's, so leaks are not findings there.
+    leaks=1
+    [ "$r" = vdb ] && leaks=0
     ./build-fuzz/fuzz_"$r" -max_total_time="$seconds" -rss_limit_mb=4096 -max_len=1048576 \
-        -artifact_prefix=build-fuzz/findings/"$r"- "$corpus/$r" || failed+=("$r")
+        -detect_leaks=$leaks -artifact_prefix=build-fuzz/findings/"$r"- "$corpus/$r" || failed+=("$r")
 done
 if [ ${#failed[@]} -gt 0 ]; then
     echo "== findings in: ${failed[*]} (build-fuzz/findings/)"
