@@ -26,8 +26,10 @@ struct FitOptions {
     int iterations = 2000;
     /// Rays per iteration (random views and pixels).
     int batch = 4096;
-    /// Adam step sizes: density in optical depth per voxel of the current
-    /// grid (σ·spacing), color in color units.
+    /// Adam step sizes on the first grid, halved with each doubling: density
+    /// in optical depth per voxel of the current grid (σ·spacing), color in
+    /// color units. Updates are sparse: only the nodes a batch's rays reach
+    /// get a total-variation gradient and an Adam step.
     double lr_density = 0.01, lr_color = 0.01;
     /// Total variation (mean over nodes of the squared differences to the
     /// next node along x, y and z), of the same scaled density and of color.

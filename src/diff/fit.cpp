@@ -80,34 +80,29 @@ void resample(const Volume& from, Volume& to) {
             }
 }
 
-/// Squared-difference total variation of x (C components per node) with
-/// weight w/N: adds its gradient into grad (scaled by `scale`, the
-/// parameter's unit) and returns its value.
-double total_variation(const Volume& v, double scale, double w, std::vector<double>& grad) {
-    if (w == 0.0) return 0.0;
+/// The gradient of the squared-difference total variation
+/// (w/N)·Σ_pairs (p_m − p_n)² of the parameters p = scale·x, with respect to
+/// p at node n, component c (the pairs n takes part in along x, y and z),
+/// added into grad; returns n's share of the TV (its pairs towards +x, +y,
+/// +z).
+double tv_at(const Volume& v, std::int64_t n, int c, double scale, double w, double& grad) {
     const auto& d = v.dims();
     const int C = v.components();
     const float* x = v.data<float>();
     const double k = w / static_cast<double>(v.num_nodes());
-    const std::array<std::int64_t, 3> stride{1, d[0], d[0] * d[1]};
-    double total = 0;
-    std::int64_t n = 0;
-    for (std::int64_t kz = 0; kz < d[2]; ++kz)
-        for (std::int64_t jy = 0; jy < d[1]; ++jy)
-            for (std::int64_t ix = 0; ix < d[0]; ++ix, ++n) {
-                const std::array<bool, 3> has{ix + 1 < d[0], jy + 1 < d[1], kz + 1 < d[2]};
-                for (int a = 0; a < 3; ++a) {
-                    if (!has[a]) continue;
-                    const std::int64_t m = n + stride[a];
-                    for (int c = 0; c < C; ++c) {
-                        const double diff = scale * (static_cast<double>(x[m * C + c]) - x[n * C + c]);
-                        total += k * diff * diff;
-                        grad[static_cast<std::size_t>(n * C + c)] -= 2 * k * diff;
-                        grad[static_cast<std::size_t>(m * C + c)] += 2 * k * diff;
-                    }
-                }
-            }
-    return total;
+    const std::int64_t i = n % d[0], j = (n / d[0]) % d[1], kz = n / (d[0] * d[1]);
+    const std::array<std::int64_t, 3> pos{i, j, kz}, stride{1, d[0], d[0] * d[1]};
+    const double xn = x[n * C + c];
+    double share = 0;
+    for (int a = 0; a < 3; ++a) {
+        if (pos[a] + 1 < d[a]) {
+            const double diff = scale * (x[(n + stride[a]) * C + c] - xn);
+            share += k * diff * diff;
+            grad -= 2 * k * diff;
+        }
+        if (pos[a] > 0) grad += 2 * k * scale * (xn - x[(n - stride[a]) * C + c]);
+    }
+    return share;
 }
 
 }  // namespace
@@ -123,7 +118,8 @@ struct Fitter::Impl {
     Volume density, color;      // σ (1/world unit), c
     Volume m_d, v_d, m_c, v_c;  // Adam moments (density in the scaled unit)
     std::unique_ptr<DiffRenderer> renderer;
-    Gradients g;  // kept from one iteration to the next (no reallocation)
+    Gradients g;                       // kept from one iteration to the next, zero between batches
+    std::vector<std::size_t> touched;  // the nodes a batch reached
 
     [[nodiscard]] RenderSettings settings(int w, int h) const {
         RenderSettings s;
@@ -176,19 +172,49 @@ struct Fitter::Impl {
         const auto fwd = renderer->forward(batch.rays, batch.offsets);
         std::vector<RayAdjoint> adj;
         const double mse = fit::mse_adjoints(fwd, batch.target, adj);
-        g.zero();
         renderer->backward(batch.rays, fwd, adj, g, batch.offsets);
+        // Sparse ("lazy") updates: only the nodes this batch's rays reached
+        // (nonzero gradient) get a TV gradient and an Adam step, as sparse
+        // Adam does; others keep their values and moments. (A dense TV
+        // gradient would be normalised by Adam into full-size steps at nodes
+        // no ray constrains.)
+        touched.clear();
+        for (std::size_t n = 0; n < g.density.size(); ++n)
+            if (g.density[n] != 0.0 || g.color[3 * n] != 0.0 || g.color[3 * n + 1] != 0.0 ||
+                g.color[3 * n + 2] != 0.0)
+                touched.push_back(n);
         // Density is optimised as optical depth per voxel p = σ·s: ∂L/∂p = ∂L/∂σ / s.
         const double s = spacing();
-        for (double& x : g.density) x /= s;
         double loss = mse;
-        loss += total_variation(density, s, o.tv_density, g.density);
-        loss += total_variation(color, 1.0, o.tv_color, g.color);
         ++adam_t;
-        fit::adam_update(density.data<float>(), m_d.data<float>(), v_d.data<float>(), g.density.data(),
-                         g.density.size(), o.lr_density, adam_t, s, 0.0, INFINITY);
-        fit::adam_update(color.data<float>(), m_c.data<float>(), v_c.data<float>(), g.color.data(),
-                         g.color.size(), o.lr_color, adam_t, 1.0, 0.0, 1.0);
+        // The step sizes hold for the first grid and halve with each doubling:
+        // a voxel's optical depth halves, and fewer rays reach each node.
+        const double lr_scale = static_cast<double>(o.start_grid) / levels[static_cast<std::size_t>(level)];
+        const fit::AdamStep step_d(o.lr_density * lr_scale, adam_t), step_c(o.lr_color * lr_scale, adam_t);
+        float* xd = density.data<float>();
+        float* md = m_d.data<float>();
+        float* vd = v_d.data<float>();
+        float* xc = color.data<float>();
+        float* mc = m_c.data<float>();
+        float* vc = v_c.data<float>();
+        // Gradients first (TV reads the values before any update), then steps.
+        for (const std::size_t n : touched) {
+            double gd = g.density[n] / s;
+            loss += tv_at(density, static_cast<std::int64_t>(n), 0, s, o.tv_density, gd);
+            g.density[n] = gd;
+            for (int c = 0; c < 3; ++c) {
+                double gc = g.color[3 * n + c];
+                loss += tv_at(color, static_cast<std::int64_t>(n), c, 1.0, o.tv_color, gc);
+                g.color[3 * n + c] = gc;
+            }
+        }
+        for (const std::size_t n : touched) {
+            step_d(xd[n], md[n], vd[n], g.density[n], s, 0.0, INFINITY);
+            for (std::size_t c = 0; c < 3; ++c)
+                step_c(xc[3 * n + c], mc[3 * n + c], vc[3 * n + c], g.color[3 * n + c], 1.0, 0.0, 1.0);
+            g.density[n] = 0.0;  // zero for the next batch
+            for (std::size_t c = 0; c < 3; ++c) g.color[3 * n + c] = 0.0;
+        }
         ++iteration;
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return {iteration, levels[static_cast<std::size_t>(level)], loss, fit::psnr_of(mse),

@@ -59,22 +59,31 @@ inline double psnr_of(double mse) {
     return -10.0 * std::log10(std::max(mse, 1e-30));
 }
 
-/// One Adam step (β = 0.9, 0.999; ε = 1e−8) on n parameters p = scale·x,
-/// step t (≥ 1), projected onto [lo, hi]; x, m, v are stored as T.
+/// Adam (β = 0.9, 0.999; ε = 1e−8) at step t ≥ 1: the bias corrections.
+struct AdamStep {
+    double lr, b1, b2;
+    AdamStep(double rate, long t)
+        : lr(rate),
+          b1(1 - std::pow(0.9, static_cast<double>(t))),
+          b2(1 - std::pow(0.999, static_cast<double>(t))) {}
+    /// Updates one parameter p = scale·x with gradient g (w.r.t. p),
+    /// projected onto [lo, hi]; x, m, v stored as T.
+    template <class T>
+    void operator()(T& x, T& m, T& v, double g, double scale, double lo, double hi) const {
+        m = static_cast<T>(0.9 * m + (1 - 0.9) * g);
+        v = static_cast<T>(0.999 * v + (1 - 0.999) * g * g);
+        const double step = lr * (m / b1) / (std::sqrt(v / b2) + 1e-8);
+        const double p = std::clamp(scale * x - step, lo, hi);
+        x = static_cast<T>(p / scale);
+    }
+};
+
+/// One Adam step on n parameters (all of them: a dense update).
 template <class T>
 void adam_update(T* x, T* m, T* v, const double* g, std::size_t n, double lr, long t, double scale, double lo,
                  double hi) {
-    constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEps = 1e-8;
-    const double b1 = 1 - std::pow(kBeta1, static_cast<double>(t));
-    const double b2 = 1 - std::pow(kBeta2, static_cast<double>(t));
-    for (std::size_t i = 0; i < n; ++i) {
-        const double gi = g[i];
-        m[i] = static_cast<T>(kBeta1 * m[i] + (1 - kBeta1) * gi);
-        v[i] = static_cast<T>(kBeta2 * v[i] + (1 - kBeta2) * gi * gi);
-        const double step = lr * (m[i] / b1) / (std::sqrt(v[i] / b2) + kEps);
-        const double p = std::clamp(scale * x[i] - step, lo, hi);
-        x[i] = static_cast<T>(p / scale);
-    }
+    const AdamStep step(lr, t);
+    for (std::size_t i = 0; i < n; ++i) step(x[i], m[i], v[i], g[i], scale, lo, hi);
 }
 
 /// Mean PSNR over a view set's images (RGB over the background) of what
