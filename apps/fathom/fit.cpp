@@ -30,14 +30,6 @@ struct FitArgs {
     bool resume = false, quiet = false;
 };
 
-Rgb parse_background(const std::string& s) {
-    if (s == "white") return {1, 1, 1};
-    if (s == "black") return {0, 0, 0};
-    const auto v = parse_numbers(s, "--background");
-    if (v.size() != 3) throw UsageError("--background expects white, black or R,G,B");
-    return {v[0], v[1], v[2]};
-}
-
 /// The scene file that renders the result like the first view of the set.
 void write_scene(const fs::path& out, const Fitter& f, const ViewSet& set) {
     const RenderSettings s = f.render_settings(set.width(), set.height());

@@ -35,15 +35,7 @@ TransferFunction tf_arg(const std::string& s, const Volume& v) {
 }
 
 void run_fit_tf(FitTfArgs a) {
-    if (a.background == "white")
-        a.o.background = {1, 1, 1};
-    else if (a.background == "black")
-        a.o.background = {0, 0, 0};
-    else {
-        const auto v = parse_numbers(a.background, "--background");
-        if (v.size() != 3) throw UsageError("--background expects white, black or R,G,B");
-        a.o.background = {v[0], v[1], v[2]};
-    }
+    a.o.background = parse_background(a.background);
     a.o.integrator = parse_integrator(a.integrator, "--integrator");
     try {
         a.o.validate();

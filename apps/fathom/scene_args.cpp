@@ -202,4 +202,12 @@ Scene SceneArgs::load(const std::string& command) const {
     return sc;
 }
 
+Rgb parse_background(const std::string& text) {
+    if (text == "white") return {1, 1, 1};
+    if (text == "black") return {0, 0, 0};
+    const auto v = parse_numbers(text, "--background");
+    if (v.size() != 3) throw UsageError("--background expects white, black or R,G,B");
+    return {v[0], v[1], v[2]};
+}
+
 }  // namespace fathom::cli

@@ -33,6 +33,9 @@ struct SceneArgs {
     [[nodiscard]] Scene load(const std::string& command) const;
 };
 
+/// --background of the fitters: "white", "black" or "R,G,B"; UsageError otherwise.
+Rgb parse_background(const std::string& text);
+
 /// "1,2.5,3" → numbers; UsageError naming the flag otherwise.
 std::vector<double> parse_numbers(const std::string& text, const std::string& flag);
 

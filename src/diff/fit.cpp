@@ -121,16 +121,7 @@ struct Fitter::Impl {
     Gradients g;                       // kept from one iteration to the next, zero between batches
     std::vector<std::size_t> touched;  // the nodes a batch reached
 
-    [[nodiscard]] RenderSettings settings(int w, int h) const {
-        RenderSettings s;
-        s.width = w;
-        s.height = h;
-        s.integrator = o.integrator;
-        s.step = o.step;
-        s.background = o.background;
-        s.threads = o.threads;
-        return s;
-    }
+    [[nodiscard]] RenderSettings settings(int w, int h) const { return fit::render_settings(o, w, h); }
     [[nodiscard]] double spacing() const { return density.spacing().x; }
 
     void make_level(int n, bool init) {

@@ -15,6 +15,19 @@
 
 namespace fathom::fit {
 
+/// Render settings of a fit: its integrator, step, background and threads.
+template <class Options>
+RenderSettings render_settings(const Options& o, int w, int h) {
+    RenderSettings s;
+    s.width = w;
+    s.height = h;
+    s.integrator = o.integrator;
+    s.step = o.step;
+    s.background = o.background;
+    s.threads = o.threads;
+    return s;
+}
+
 /// A batch of random rays (view and pixel uniform, jittered sample offsets)
 /// with their targets: the pixel's color composited over the background.
 struct Batch {

@@ -37,16 +37,7 @@ struct TfFitter::Impl {
     int iteration = 0;
     std::mt19937_64 rng;
 
-    [[nodiscard]] RenderSettings settings(int w, int h) const {
-        RenderSettings s;
-        s.width = w;
-        s.height = h;
-        s.integrator = o.integrator;
-        s.step = o.step;
-        s.background = o.background;
-        s.threads = o.threads;
-        return s;
-    }
+    [[nodiscard]] RenderSettings settings(int w, int h) const { return fit::render_settings(o, w, h); }
     void sync_tf() {
         for (std::size_t i = 0; i < alpha.size(); ++i) tf.alpha_points[i].second = alpha[i];
         for (std::size_t i = 0; i < tf.color_points.size(); ++i)
