@@ -26,31 +26,44 @@
 // and touching a mapped page past the end of a truncated file would fault
 // instead of failing a read. Every exception OpenVDB throws
 // (openvdb::Exception, std::exception) becomes fathom::Error(path, reason).
-// Limit: OpenVDB 10.0 trusts the chunk sizes inside a grid's compressed
-// voxel data (io::bloscFromStream reads a stored "uncompressed" chunk
-// before comparing its size with the buffer's: a heap overflow under ASan
-// on a file with random bytes changed), so a
-// deliberately damaged voxel block can still corrupt memory inside
-// libopenvdb; fathom cannot check those blocks without re-implementing the
-// tree format. And when a read fails inside a tree's topology (possible
-// only for files without grid offsets, or corrupt ones), OpenVDB's
-// RootNode::readTopology leaks the node it was reading (a few hundred KiB).
+// Isolation: OpenVDB 10.0 trusts the chunk sizes inside a grid's compressed
+// data (io::bloscFromStream copies a stored "uncompressed" chunk into its
+// buffer before comparing the chunk's size with the buffer's, a heap
+// overflow on a damaged file), and fathom cannot check those chunks without
+// re-implementing the tree format. So everything OpenVDB does runs in a
+// child process (fork): it reads the grid and sends the result back through a
+// pipe (the dense volume slab by slab, or the grid list, or the error, and
+// the warnings on the way); whatever a damaged file does to the child's heap
+// cannot reach the caller's. A child that dies (a signal, an abort, a
+// sanitizer's report) becomes an Error naming the file. The parent checks
+// every size the child sends before allocating. In the child TBB runs on one
+// thread (fork copies only the calling thread). When a read fails inside a
+// tree's topology, OpenVDB's RootNode::readTopology leaks the node it was
+// reading; in the child that no longer matters.
 //
 // Listing uses the grid statistics OpenVDB writes beside each grid
 // (file_voxel_count, file_bbox_min, file_bbox_max) and reads the grid itself
 // only when they are missing.
+#include <fcntl.h>
 #include <openvdb/Exceptions.h>
 #include <openvdb/io/Archive.h>
 #include <openvdb/io/GridDescriptor.h>
 #include <openvdb/io/io.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
+#include <sys/wait.h>
+#include <tbb/global_control.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
+#include <cstring>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <new>
@@ -390,15 +403,6 @@ private:
     std::vector<Entry> entries_;
 };
 
-/// The file's grids, after the structure check.
-std::unique_ptr<VdbArchive> open_archive(const std::string& subject, const std::filesystem::path& path) {
-    const std::uint64_t size = io::file_size_checked(subject, path, "file");
-    if (size == 0) throw Error(subject, "the file is empty");
-    check_structure(subject, path, size);
-    init_openvdb();
-    return std::make_unique<VdbArchive>(subject, path);
-}
-
 /// "'density' (float), 'v' (vec3s)" or "no grids".
 std::string describe(const std::vector<VdbGrid>& grids) {
     if (grids.empty()) return "no grids";
@@ -428,27 +432,192 @@ void check_box_size(const std::string& subject, const std::string& name, const o
                         " GiB, more than the " + std::to_string(kMaxVolumeBytes >> 30) + " GiB limit");
 }
 
-/// The grid's linear index-to-world transform as fathom placement for a box starting at `lo`.
-void place(const std::string& subject, const std::string& name, const openvdb::math::Transform& xform,
-           const openvdb::Coord& lo, Volume& v) {
+/// The checks fathom makes itself, before OpenVDB sees the file.
+void check_file(const std::string& subject, const std::filesystem::path& path) {
+    const std::uint64_t size = io::file_size_checked(subject, path, "file");
+    if (size == 0) throw Error(subject, "the file is empty");
+    check_structure(subject, path, size);
+}
+
+// ================================================================ the child process
+
+/// What the child sends, record by record: a tag byte, then the record.
+enum class Tag : char { warning = 'W', error = 'E', volume = 'V', list = 'L' };
+
+/// The child's end of the pipe.
+class Sender {
+public:
+    explicit Sender(int fd) : fd_(fd) {}
+    /// Writes all n bytes; when the parent has gone, the child just ends.
+    void bytes(const void* p, std::size_t n) {
+        const auto* c = static_cast<const char*>(p);
+        while (n > 0) {
+            const ssize_t w = ::write(fd_, c, n);
+            if (w < 0 && errno == EINTR) continue;
+            if (w <= 0) ::_exit(3);
+            c += w;
+            n -= static_cast<std::size_t>(w);
+        }
+    }
+    template <class T>
+    void pod(const T& v) {
+        bytes(&v, sizeof v);
+    }
+    void str(const std::string& s) {
+        pod(static_cast<std::uint64_t>(s.size()));
+        bytes(s.data(), s.size());
+    }
+    void tag(Tag t) { pod(t); }
+
+private:
+    int fd_;
+};
+
+/// The parent's end of the pipe: every read is checked, and the end of the stream (the child
+/// gone) is an error naming the file.
+class Receiver {
+public:
+    Receiver(int fd, std::function<void()> on_end) : fd_(fd), on_end_(std::move(on_end)) {}
+    void bytes(void* p, std::size_t n) {
+        auto* c = static_cast<char*>(p);
+        while (n > 0) {
+            const ssize_t r = ::read(fd_, c, n);
+            if (r < 0 && errno == EINTR) continue;
+            if (r <= 0) on_end_();  // throws
+            c += r;
+            n -= static_cast<std::size_t>(r);
+        }
+    }
+    template <class T>
+    T pod() {
+        T v{};
+        bytes(&v, sizeof v);
+        return v;
+    }
+    std::string str(const std::string& subject) {
+        const auto n = pod<std::uint64_t>();
+        if (n > (std::uint64_t{1} << 20))
+            throw Error(subject, "the OpenVDB reading process sent a malformed reply");
+        std::string s(n, '\0');
+        bytes(s.data(), s.size());
+        return s;
+    }
+
+private:
+    int fd_;
+    std::function<void()> on_end_;
+};
+
+/// Runs `work` in a child process with OpenVDB, which sends its result through `Sender`; the parent
+/// receives it with `receive`, which returns after reading the result record. Warnings are passed
+/// on to fathom::warn, an error record becomes Error(subject, reason), a child that ends without a
+/// result (killed by a signal, aborted) an Error that says so.
+template <class Result>
+Result in_child(const std::string& subject, const std::function<void(Sender&)>& work,
+                const std::function<Result(Tag, Receiver&)>& receive) {
+    int fds[2];
+    if (::pipe(fds) != 0)
+        throw Error(subject,
+                    std::string("cannot create a pipe for the OpenVDB reader: ") + std::strerror(errno));
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+        const int e = errno;
+        ::close(fds[0]);
+        ::close(fds[1]);
+        throw Error(subject, std::string("cannot start the OpenVDB reading process: ") + std::strerror(e));
+    }
+    if (pid == 0) {  // the child: OpenVDB reads here, then the process ends without unwinding
+        ::close(fds[0]);
+        // The file's damage may make the C library or a sanitizer print a report before the
+        // child dies; the parent says what happened, in one line.
+        if (const int null = ::open("/dev/null", O_WRONLY); null >= 0) ::dup2(null, STDERR_FILENO);
+        Sender out(fds[1]);
+        try {
+            // fork copies only this thread: TBB (used by OpenVDB's tree statistics) on one thread.
+            const tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
+            set_warning_sink([&out](const std::string& m) {
+                out.tag(Tag::warning);
+                out.str(m);
+            });
+            guarded(subject, [&] { work(out); });
+        } catch (const Error& e) {
+            out.tag(Tag::error);
+            out.str(e.reason());
+        } catch (...) {
+            out.tag(Tag::error);
+            out.str("OpenVDB failed reading the file");
+        }
+        ::_exit(0);
+    }
+
+    ::close(fds[1]);
+    struct Reap {  // closes the pipe and reaps the child on every path out
+        pid_t pid;
+        int fd;
+        bool waited = false;
+        int wait() {
+            int status = 0;
+            while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+            }
+            waited = true;
+            return status;
+        }
+        ~Reap() {
+            ::close(fd);
+            if (!waited) {
+                ::kill(pid, SIGKILL);
+                wait();
+            }
+        }
+    } reap{pid, fds[0]};
+    Receiver in(fds[0], [&] {
+        const int status = reap.wait();
+        std::string how;
+        if (WIFSIGNALED(status))
+            how = "was killed by signal " + std::to_string(WTERMSIG(status)) + " (" +
+                  std::string(strsignal(WTERMSIG(status))) + ")";
+        else
+            how = "ended with status " + std::to_string(WEXITSTATUS(status));
+        throw Error(subject, "OpenVDB failed reading the file: its reading process " + how +
+                                 " without a result (a corrupt file)");
+    });
+    for (;;) {
+        const auto tag = in.pod<Tag>();
+        if (tag == Tag::warning) {
+            warn(in.str(subject));
+        } else if (tag == Tag::error) {
+            const std::string reason = in.str(subject);
+            throw Error(subject, reason);
+        } else {
+            Result r = receive(tag, in);
+            reap.wait();
+            return r;
+        }
+    }
+}
+
+// ================================================================ volumes
+
+/// The grid's linear index-to-world transform for a box starting at `lo`: origin, then the axes.
+void send_placement(Sender& out, const std::string& subject, const std::string& name,
+                    const openvdb::math::Transform& xform, const openvdb::Coord& lo) {
     const openvdb::Vec3d base = lo.asVec3d();
     const openvdb::Vec3d o = xform.indexToWorld(base);
-    std::array<Vec3, 3> cols;
+    if (!std::isfinite(o[0]) || !std::isfinite(o[1]) || !std::isfinite(o[2]))
+        throw Error(subject, "grid '" + name + "': the transform places the volume at a non-finite position");
+    for (int a = 0; a < 3; ++a) out.pod(o[a]);
     for (int a = 0; a < 3; ++a) {
         openvdb::Vec3d step = base;
         step[a] += 1.0;
         const openvdb::Vec3d w = xform.indexToWorld(step) - o;
-        cols[a] = Vec3(w[0], w[1], w[2]);
+        for (int b = 0; b < 3; ++b) out.pod(w[b]);
     }
-    const Vec3 origin(o[0], o[1], o[2]);
-    if (!std::isfinite(origin.x) || !std::isfinite(origin.y) || !std::isfinite(origin.z))
-        throw Error(subject, "grid '" + name + "': the transform places the volume at a non-finite position");
-    v.set_origin(origin);
-    v.set_axes(Mat3::from_columns(cols[0], cols[1], cols[2]), subject);
 }
 
+/// Sends the grid densified over its active bounding box: dims, placement, then the float32
+/// values (x fastest) in z slabs, so that only the parent holds the whole dense volume.
 template <class GridT>
-Volume densify(const std::string& subject, const std::string& name, const GridT& grid) {
+void send_dense(Sender& out, const std::string& subject, const std::string& name, const GridT& grid) {
     const openvdb::CoordBBox active = grid.evalActiveVoxelBoundingBox();
     if (grid.activeVoxelCount() == 0 || active.empty())
         throw Error(subject, "grid '" + name + "' has no active voxels (an empty grid)");
@@ -470,27 +639,38 @@ Volume densify(const std::string& subject, const std::string& name, const GridT&
         warn(subject + ": grid '" + name + "' is one voxel thick along " + thin +
              "; extended by one voxel there (fathom needs two samples per axis)");
 
-    const openvdb::CoordBBox box(lo, hi);
     const std::array<std::int64_t, 3> dims{std::int64_t{hi.x()} - lo.x() + 1,
                                            std::int64_t{hi.y()} - lo.y() + 1,
                                            std::int64_t{hi.z()} - lo.z() + 1};
-    io::grid_bytes(subject, "active bounding box", io::GridShape{dims, DType::f32, 1});
-    Volume v(dims, DType::f32);
-    // LayoutXYZ: x fastest, fathom's order; Dense writes straight into the volume.
-    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box, v.data<float>());
-    openvdb::tools::copyToDense(grid, dense);
-    place(subject, name, grid.transform(), lo, v);
-    return v;
+    out.tag(Tag::volume);
+    for (const auto d : dims) out.pod(d);
+    send_placement(out, subject, name, grid.transform(), lo);
+    // Slabs of about 4 M values (at least one z layer); LayoutXYZ is x fastest, fathom's order.
+    const std::int64_t layer = dims[0] * dims[1];
+    const std::int64_t per_slab = std::max<std::int64_t>(1, (std::int64_t{1} << 22) / layer);
+    std::vector<float> slab(static_cast<std::size_t>(layer * std::min(per_slab, dims[2])));
+    for (std::int64_t z0 = 0; z0 < dims[2]; z0 += per_slab) {
+        const std::int64_t nz = std::min(per_slab, dims[2] - z0);
+        const openvdb::CoordBBox box(
+            openvdb::Coord(lo.x(), lo.y(), lo.z() + static_cast<openvdb::Int32>(z0)),
+            openvdb::Coord(hi.x(), hi.y(), lo.z() + static_cast<openvdb::Int32>(z0 + nz - 1)));
+        openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box, slab.data());
+        openvdb::tools::copyToDense(grid, dense, /*serial=*/true);
+        out.bytes(slab.data(), static_cast<std::size_t>(layer * nz) * sizeof(float));
+    }
 }
 
-Volume read_grid(const std::string& subject, const std::filesystem::path& path, const std::string& name) {
-    const auto file = open_archive(subject, path);
-    if (!file->has(name))
-        throw Error(subject, "no grid named '" + name + "'; the file holds " + describe(file->list()));
+/// In the child: reads grid `name` and sends it densified.
+void send_grid(Sender& out, const std::string& subject, const std::filesystem::path& path,
+               const std::string& name) {
+    init_openvdb();
+    VdbArchive file(subject, path);
+    if (!file.has(name))
+        throw Error(subject, "no grid named '" + name + "'; the file holds " + describe(file.list()));
 
     // Metadata and transform first: refuse a wrong type, a frustum or an oversized box before
     // reading the voxels.
-    const openvdb::GridBase::Ptr meta = file->metadata(name);
+    const openvdb::GridBase::Ptr meta = file.metadata(name);
     const std::string type = meta->valueType();
     if (type != "float" && type != "double")
         throw Error(subject, "grid '" + name + "' holds " + type +
@@ -507,24 +687,86 @@ Volume read_grid(const std::string& subject, const std::filesystem::path& path, 
                                       static_cast<openvdb::Int32>(stats->bbox_max[1]),
                                       static_cast<openvdb::Int32>(stats->bbox_max[2])));
 
-    const openvdb::GridBase::Ptr grid = file->grid(name);
-    if (const auto g = openvdb::gridConstPtrCast<openvdb::FloatGrid>(grid)) return densify(subject, name, *g);
+    const openvdb::GridBase::Ptr grid = file.grid(name);
+    if (const auto g = openvdb::gridConstPtrCast<openvdb::FloatGrid>(grid))
+        return send_dense(out, subject, name, *g);
     if (const auto g = openvdb::gridConstPtrCast<openvdb::DoubleGrid>(grid))
-        return densify(subject, name, *g);
+        return send_dense(out, subject, name, *g);
     throw Error(subject, "grid '" + name + "' holds " + grid->valueType() + " values in a " + grid->type() +
                              " tree; fathom reads float and double grids of the standard tree only");
+}
+
+/// In the parent: the volume record the child sent, checked before anything is allocated.
+Volume receive_volume(const std::string& subject, Receiver& in) {
+    std::array<std::int64_t, 3> dims{};
+    for (auto& d : dims) d = in.pod<std::int64_t>();
+    for (const auto d : dims)
+        if (d < 2) throw Error(subject, "the OpenVDB reading process sent a malformed reply");
+    io::grid_bytes(subject, "active bounding box", io::GridShape{dims, DType::f32, 1});
+    Vec3 origin;
+    origin.x = in.pod<double>();
+    origin.y = in.pod<double>();
+    origin.z = in.pod<double>();
+    std::array<Vec3, 3> cols;
+    for (auto& c : cols) {
+        c.x = in.pod<double>();
+        c.y = in.pod<double>();
+        c.z = in.pod<double>();
+    }
+    Volume v(dims, DType::f32);
+    in.bytes(v.data<float>(), static_cast<std::size_t>(dims[0] * dims[1] * dims[2]) * sizeof(float));
+    v.set_origin(origin);
+    v.set_axes(Mat3::from_columns(cols[0], cols[1], cols[2]), subject);
+    return v;
 }
 
 }  // namespace
 
 std::vector<VdbGrid> list_vdb_grids(const std::filesystem::path& path) {
     const std::string subject = path.string();
-    return guarded(subject, [&] { return open_archive(subject, path)->list(); });
+    check_file(subject, path);
+    return in_child<std::vector<VdbGrid>>(
+        subject,
+        [&](Sender& out) {
+            init_openvdb();
+            const std::vector<VdbGrid> grids = VdbArchive(subject, path).list();
+            out.tag(Tag::list);
+            out.pod(static_cast<std::uint64_t>(grids.size()));
+            for (const auto& g : grids) {
+                out.str(g.name);
+                out.str(g.type);
+                out.pod(g.active_voxels);
+                out.pod(g.bbox_min);
+                out.pod(g.bbox_max);
+            }
+        },
+        [&](Tag tag, Receiver& in) {
+            if (tag != Tag::list) throw Error(subject, "the OpenVDB reading process sent a malformed reply");
+            const auto n = in.pod<std::uint64_t>();
+            std::vector<VdbGrid> grids;
+            for (std::uint64_t i = 0; i < n; ++i) {
+                VdbGrid g;
+                g.name = in.str(subject);
+                g.type = in.str(subject);
+                g.active_voxels = in.pod<std::uint64_t>();
+                g.bbox_min = in.pod<std::array<std::int64_t, 3>>();
+                g.bbox_max = in.pod<std::array<std::int64_t, 3>>();
+                grids.push_back(std::move(g));
+            }
+            return grids;
+        });
 }
 
 Volume read_vdb(const std::filesystem::path& path, const std::string& grid) {
     const std::string subject = path.string();
-    Volume v = guarded(subject, [&] { return read_grid(subject, path, grid); });
+    check_file(subject, path);
+    Volume v = in_child<Volume>(
+        subject, [&](Sender& out) { send_grid(out, subject, path, grid); },
+        [&](Tag tag, Receiver& in) {
+            if (tag != Tag::volume)
+                throw Error(subject, "the OpenVDB reading process sent a malformed reply");
+            return receive_volume(subject, in);
+        });
     io::check_finite(subject, v);
     return v;
 }

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -475,6 +476,49 @@ TEST(VdbReaderErrors, CorruptGridData) {
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find((dir / "body.vdb").string()), std::string::npos);
     }
+}
+
+TEST(VdbReaderErrors, OversizedUncompressedChunkStaysInTheReadingProcess) {
+    // A blosc chunk of voxel values is stored as its size (int64), then the bytes; a negative
+    // size marks the bytes as stored uncompressed. OpenVDB's io::bloscFromStream copies such a
+    // chunk into the node's buffer before comparing its size with the buffer's, so a damaged size
+    // overflows the heap inside OpenVDB. fathom reads in a child process: the caller gets an
+    // error naming the file and its own heap is untouched (the child dies of the damage: glibc's
+    // heap checks or ASan abort it). Read in this process, the file aborts the test.
+    openvdb::initialize();
+    if (!openvdb::io::Archive::hasBloscCompression()) GTEST_SKIP() << "OpenVDB built without Blosc";
+    TempDir dir;
+    auto grid = openvdb::FloatGrid::create(0.0f);
+    grid->setName("density");
+    auto acc = grid->getAccessor();
+    for (int i = 0; i < 10; ++i) acc.setValue(openvdb::Coord(0, i / 8, i % 8), 1.0f + static_cast<float>(i));
+    for (int x = 8; x < 16; ++x)  // a full leaf after it: bytes for the overflow to copy
+        for (int y = 0; y < 8; ++y)
+            for (int z = 0; z < 8; ++z) acc.setValue(openvdb::Coord(x, y, z), static_cast<float>(x + y + z));
+    write_vdb(dir / "good.vdb", {grid});
+    const std::string bytes = read_whole(dir / "good.vdb");
+    // The first leaf's chunk: its 10 active values (40 bytes), a blosc frame (version byte 2,
+    // then uncompressed and compressed sizes at +4 and +12) after the int64 chunk size.
+    std::size_t at = std::string::npos;
+    for (std::size_t i = 0; i + 24 <= bytes.size() && at == std::string::npos; ++i) {
+        std::int64_t size = 0;
+        std::uint32_t raw = 0, packed = 0;
+        std::memcpy(&size, bytes.data() + i, 8);
+        std::memcpy(&raw, bytes.data() + i + 12, 4);
+        std::memcpy(&packed, bytes.data() + i + 20, 4);
+        if (size > 0 && bytes[i + 8] == 2 && raw == 40 && static_cast<std::int64_t>(packed) == size) at = i;
+    }
+    ASSERT_NE(at, std::string::npos) << "no blosc chunk of the first leaf in the test file";
+    std::string bad = bytes;
+    const std::int64_t oversized = -(40 + 1024);  // "uncompressed", 1 KiB past the buffer
+    bad.replace(at, 8, reinterpret_cast<const char*>(&oversized), 8);
+    write_bytes(dir / "bad.vdb", bad);
+
+    expect_error([&] { read_vdb(dir / "bad.vdb"); }, dir / "bad.vdb", {"OpenVDB"});
+    // The process goes on: the intact file still reads, exactly.
+    const Volume v = read_vdb(dir / "good.vdb");
+    ASSERT_EQ(v.dims(), (std::array<std::int64_t, 3>{16, 8, 8}));
+    expect_matches_grid(v, *grid, openvdb::Coord(0, 0, 0));
 }
 
 TEST(VdbReaderErrors, EmptyGridNanAndFrustum) {
