@@ -150,6 +150,10 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--step", a->o.step, "Sample step in voxels of the current grid (0.5)");
     cmd->add_option("--seed", a->o.seed, "Random seed of the ray batches (1)");
     cmd->add_option("--threads", a->o.threads, "Threads (0: all cores)");
+    cmd->add_option("--prune", a->o.prune,
+                    "Density below this optical depth per voxel is set to 0 (1e-4; 0: no pruning)");
+    cmd->add_flag("!--no-skip-empty", a->o.skip_empty,
+                  "Do not skip empty macrocells while training (exact gradients everywhere)");
     cmd->add_option("--eval-every", a->eval_every,
                     "Held-out PSNR every N iterations (default: at each grid change and at the end)");
     cmd->add_option("--checkpoint-every", a->checkpoint_every,

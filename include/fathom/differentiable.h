@@ -60,9 +60,9 @@ struct Gradients {
 /// runs front to back; back-to-front renders the same function), jitter,
 /// cropping and clipping. Not differentiable, and refused: shading, gradient
 /// opacity, the projection and isosurface models, the reference integrator.
-/// Empty-space skipping and SIMD do not apply (an empty region still has a
-/// gradient), so the forward result equals Renderer's front to back with
-/// skip_empty and simd off, bit for bit; back to front it is the same sum
+/// Empty-space skipping (unless skip_empty_density is on) and SIMD do not
+/// apply (an empty region still has a gradient); the forward result equals
+/// Renderer's front to back with skip_empty and simd off, bit for bit; back to front it is the same sum
 /// (without early termination) in the other order.
 class DiffRenderer {
 public:
@@ -76,6 +76,19 @@ public:
     DiffRenderer& operator=(DiffRenderer&&) noexcept;
 
     [[nodiscard]] const RenderSettings& settings() const;
+
+    /// Training speed-up for pre-classified grids (Plenoxels-style pruning):
+    /// both passes skip the macrocells (4³ cells; 8³ pre-integrated) where
+    /// every density node is exactly 0, as Renderer's empty-space skipping
+    /// does. The forward result is unchanged bit for bit (those segments are
+    /// exactly (1, 0)); the backward pass computes no gradient inside them,
+    /// so an emptied region stays empty (it can regrow from its border: the
+    /// nodes a macrocell shares with a non-empty one still get gradients).
+    /// The macrocells are built from the density now: call again after
+    /// changing it; `false` turns skipping off (the default: exact gradients).
+    void skip_empty_density(bool on);
+    /// The fraction of macrocells skipped (0 when skipping is off).
+    [[nodiscard]] double empty_fraction() const;
     /// Gradients sized for this renderer, zero.
     [[nodiscard]] Gradients make_gradients() const;
 
@@ -97,7 +110,8 @@ public:
     /// is deterministic for a given thread count (and, with one thread,
     /// equals the one-ray calls in order).
     void backward(std::span<const Ray> rays, std::span<const RayResult> forward,
-                  std::span<const RayAdjoint> adjoints, Gradients& g, std::span<const double> offsets = {}) const;
+                  std::span<const RayAdjoint> adjoints, Gradients& g,
+                  std::span<const double> offsets = {}) const;
 
     /// The image of a camera (jitter as Renderer::render), and its backward
     /// pass given dL/d(pixel) as H×W×4 floats (RGBA) in `adjoint` (each

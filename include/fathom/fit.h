@@ -41,6 +41,14 @@ struct FitOptions {
     double step = 0.5;
     std::uint32_t seed = 1;
     int threads = 0;
+    /// Pruning (as Plenoxels): a density node whose optical depth per voxel
+    /// falls below `prune` after a step is set to exactly 0; with
+    /// `skip_empty`, the macrocells whose density nodes are all 0 are skipped
+    /// by both passes from then on (DiffRenderer::skip_empty_density: no
+    /// gradient inside them, so they stay empty unless they regrow from
+    /// their border). Off: prune = 0, skip_empty = false.
+    double prune = 1e-4;
+    bool skip_empty = true;
 
     /// Throws Error("fit options", ...) on out-of-range values.
     void validate() const;

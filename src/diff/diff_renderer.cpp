@@ -7,6 +7,7 @@
 #include <atomic>
 #include <exception>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "fathom/differentiable.h"
@@ -88,17 +89,52 @@ struct SegmentValue {
 /// The per-segment work of one integrator over one medium: value(i) gives
 /// segment i's (t, C) exactly as the renderer computes them; grad(i, adj)
 /// scatters the segment's adjoint into the gradients.
-template <class Seg>
-RayResult march_forward(std::int64_t n, double termination, const Rgb& bg, Seg& seg) {
+///
+/// `runs(i)` gives the run of segments from i on that share a state: its
+/// last index and whether the run is empty (every segment (1, 0) exactly,
+/// skipped: the sums are unchanged bit for bit, and no gradient is computed
+/// there).
+struct RunState {
+    std::int64_t last;
+    bool empty;
+};
+
+/// Skipping with the macrocells of a density grid (DiffRenderer::skip_empty_density).
+struct MacrocellRuns {
+    std::int64_t n;
+    const RunFinder* finder;  // nullptr: no skipping
+    bool ends;                // pre-integrated: segment i spans ends i − 1 and i
+    RunState operator()(std::int64_t i) const {
+        if (finder == nullptr) return {n, false};
+        if (!ends) {
+            const auto r = finder->run(i, +1, n);
+            return {r.last, r.empty};
+        }
+        const auto r = finder->run(i - 1, +1, n);  // ends i − 1 … r.last in one macrocell
+        if (r.last >= i) return {r.last, r.empty};
+        // Segment i leaves the macrocell: empty when both of its ends' macrocells are.
+        return {i, r.empty && finder->run(i, +1, n).empty};
+    }
+};
+
+template <class Seg, class Runs>
+RayResult march_forward(std::int64_t n, double termination, const Rgb& bg, Seg& seg, const Runs& runs) {
     RayResult r;
     double T = 1.0;
-    for (std::int64_t i = 1; i <= n; ++i) {
-        const SegmentValue s = seg.value(i);
-        for (int c = 0; c < 3; ++c) r.radiance[c] += T * s.C[c];
-        T *= s.t;
-        if (T < termination) {
-            r.alpha = 1.0 - T;
-            return r;
+    for (std::int64_t i = 1; i <= n;) {
+        const RunState run = runs(i);
+        if (run.empty) {
+            i = run.last + 1;
+            continue;
+        }
+        for (; i <= run.last; ++i) {
+            const SegmentValue s = seg.value(i);
+            for (int c = 0; c < 3; ++c) r.radiance[c] += T * s.C[c];
+            T *= s.t;
+            if (T < termination) {
+                r.alpha = 1.0 - T;
+                return r;
+            }
         }
     }
     for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
@@ -107,23 +143,30 @@ RayResult march_forward(std::int64_t n, double termination, const Rgb& bg, Seg& 
 }
 
 /// ∂I/∂C_i = T_{i−1}; ∂I/∂τ_i = −(I − I_{≤i}); ∂α/∂τ_i = T_final.
-template <class Seg>
-void march_backward(std::int64_t n, double termination, const RayResult& fwd, const RayAdjoint& adj,
-                    Seg& seg) {
+template <class Seg, class Runs>
+void march_backward(std::int64_t n, double termination, const RayResult& fwd, const RayAdjoint& adj, Seg& seg,
+                    const Runs& runs) {
     const double T_final = 1.0 - fwd.alpha;
     double T = 1.0;
     Rgb acc{0, 0, 0};  // I_{≤i}
-    for (std::int64_t i = 1; i <= n; ++i) {
-        const SegmentValue s = seg.value(i);
-        SegmentAdjoint a{adj.alpha * T_final, {}};
-        for (int c = 0; c < 3; ++c) {
-            a.radiance[c] = adj.radiance[c] * T;
-            acc[c] += T * s.C[c];
-            a.tau -= adj.radiance[c] * (fwd.radiance[c] - acc[c]);
+    for (std::int64_t i = 1; i <= n;) {
+        const RunState run = runs(i);
+        if (run.empty) {
+            i = run.last + 1;
+            continue;
         }
-        seg.grad(i, a);
-        T *= s.t;
-        if (T < termination) return;
+        for (; i <= run.last; ++i) {
+            const SegmentValue s = seg.value(i);
+            SegmentAdjoint a{adj.alpha * T_final, {}};
+            for (int c = 0; c < 3; ++c) {
+                a.radiance[c] = adj.radiance[c] * T;
+                acc[c] += T * s.C[c];
+                a.tau -= adj.radiance[c] * (fwd.radiance[c] - acc[c]);
+            }
+            seg.grad(i, a);
+            T *= s.t;
+            if (T < termination) return;
+        }
     }
 }
 
@@ -258,14 +301,19 @@ struct PointSegments {
         }
         return l;
     }
+    // The backward march asks for value(i), then grad(i): the sample is kept.
+    mutable Local last{};
+    mutable std::int64_t last_i = -1;
+
     SegmentValue value(std::int64_t i) const {
-        const Local l = local(i);
-        SegmentValue v{std::exp(-l.sa * delta), {}};
-        for (int c = 0; c < 3; ++c) v.C[c] = l.src[c] * l.w;
+        last = local(i);
+        last_i = i;
+        SegmentValue v{std::exp(-last.sa * delta), {}};
+        for (int c = 0; c < 3; ++c) v.C[c] = last.src[c] * last.w;
         return v;
     }
     void grad(std::int64_t i, const SegmentAdjoint& a) const {
-        const Local l = local(i);
+        const Local l = last_i == i ? last : local(i);
         double dsa = a.tau * delta;  // τ = σ_a·δ
         if constexpr (kAlpha) {
             const double dw = delta * delta * dphi(l.sa * delta);  // ∂w/∂σ_a
@@ -489,6 +537,62 @@ struct PreintScalarSegments {
 
 // ------------------------------------------------------------- renderer ---
 
+namespace {
+
+/// Zero gradients with the sizes of g.
+Gradients sized_like(const Gradients& g) {
+    Gradients r;
+    r.density.assign(g.density.size(), 0.0);
+    r.color.assign(g.color.size(), 0.0);
+    r.scalar.assign(g.scalar.size(), 0.0);
+    r.tf_alpha.assign(g.tf_alpha.size(), 0.0);
+    r.tf_color.assign(g.tf_color.size(), Rgb{0, 0, 0});
+    return r;
+}
+
+bool same_sizes(const Gradients& a, const Gradients& b) {
+    return a.density.size() == b.density.size() && a.color.size() == b.color.size() &&
+           a.scalar.size() == b.scalar.size() && a.tf_alpha.size() == b.tf_alpha.size() &&
+           a.tf_color.size() == b.tf_color.size();
+}
+
+/// b[i] += a[i]; a[i] = 0 over [lo, hi) of a's size.
+void add_and_zero(std::vector<double>& into, std::vector<double>& from, std::size_t lo, std::size_t hi) {
+    hi = std::min(hi, from.size());
+    for (std::size_t i = lo; i < hi; ++i) {
+        into[i] += from[i];
+        from[i] = 0.0;
+    }
+}
+
+}  // namespace
+
+/// Zeroed gradient buffers kept between calls (the per-thread buffers of
+/// the batched backward passes): allocating and clearing them each call cost
+/// as much as the rays on large grids.
+struct ScratchPool {
+    std::mutex m;
+    std::vector<std::unique_ptr<Gradients>> free;
+
+    std::unique_ptr<Gradients> take(const Gradients& like) {
+        {
+            std::lock_guard lock(m);
+            for (auto& p : free)
+                if (same_sizes(*p, like)) {
+                    std::unique_ptr<Gradients> r = std::move(p);
+                    free.erase(std::find(free.begin(), free.end(), nullptr));
+                    return r;
+                }
+        }
+        return std::make_unique<Gradients>(sized_like(like));
+    }
+    void give(std::unique_ptr<Gradients> p) {  // p must be zero
+        std::lock_guard lock(m);
+        free.push_back(std::move(p));
+        if (free.size() > 8) free.erase(free.begin());
+    }
+};
+
 struct DiffRenderer::Impl {
     Renderer::Impl base;  // settings, lattice, spans, step, background, classifier
     const Volume* density = nullptr;
@@ -496,6 +600,8 @@ struct DiffRenderer::Impl {
     const Volume* scalar = nullptr;
     std::size_t alpha_points = 0, color_points = 0;
     std::vector<double> alpha_chain;  // dσ_k/d(written value_k)
+    bool skip = false;                // skip_empty_density: base.empty_space holds the macrocells
+    mutable ScratchPool scratch;      // per-thread buffers of the batched backward passes
 
     /// Calls f(seg, n) with the segment walker of the ray and its count n, or
     /// returns false when the ray misses.
@@ -551,27 +657,34 @@ struct DiffRenderer::Impl {
     template <Model M, class Med, class F, class Tag>
     void dispatch(const Med& med, const SampleGrid& point, const SampleGrid& ends, double delta, bool full,
                   std::int64_t n, Gradients* g, F& f, Tag) const {
+        // Skipping (pre-classified grids, when asked for): runs of samples (point-sampled) or of
+        // segments with both ends (pre-integrated) in one macrocell.
+        const bool point_sampled =
+            base.s.integrator == IntegratorKind::riemann || base.s.integrator == IntegratorKind::alpha;
+        std::optional<RunFinder> finder;
+        if (skip) finder.emplace(base.empty_space, point_sampled ? point : ends);
+        const MacrocellRuns runs{n, finder ? &*finder : nullptr, !point_sampled};
         switch (base.s.integrator) {
             case IntegratorKind::riemann: {
                 PointSegments<M, false, Med> seg{med, point, delta, g};
-                f(seg, n);
+                f(seg, n, runs);
                 return;
             }
             case IntegratorKind::alpha: {
                 PointSegments<M, true, Med> seg{med, point, delta, g};
-                f(seg, n);
+                f(seg, n, runs);
                 return;
             }
             default:
                 if constexpr (std::is_same_v<Tag, PreintScalarTag>) {
                     PreintScalarSegments<M, std::remove_cvref_t<decltype(*med.grid.data)>> seg{
                         med, ends, delta, full, g};
-                    f(seg, n);
+                    f(seg, n, runs);
                 } else {
                     PreintGridSegments<M, std::remove_cvref_t<decltype(*med.density.data)>,
                                        std::remove_cvref_t<decltype(*med.color.data)>>
                         seg{med, ends, delta, full, g};
-                    f(seg, n);
+                    f(seg, n, runs);
                 }
                 return;
         }
@@ -583,8 +696,9 @@ struct DiffRenderer::Impl {
 
     [[nodiscard]] RayResult forward(const Ray& ray, double offset) const {
         RayResult r{base.bg, 0.0};
-        with_segments(ray, offset, nullptr,
-                      [&](auto& seg, std::int64_t n) { r = march_forward(n, termination(), base.bg, seg); });
+        with_segments(ray, offset, nullptr, [&](auto& seg, std::int64_t n, const MacrocellRuns& runs) {
+            r = march_forward(n, termination(), base.bg, seg, runs);
+        });
         return r;
     }
     /// Throws unless g has this renderer's sizes (a scalar volume's voxel
@@ -604,8 +718,9 @@ struct DiffRenderer::Impl {
     }
     void backward(const Ray& ray, const RayResult& fwd, const RayAdjoint& adj, Gradients& g,
                   double offset) const {
-        with_segments(ray, offset, &g,
-                      [&](auto& seg, std::int64_t n) { march_backward(n, termination(), fwd, adj, seg); });
+        with_segments(ray, offset, &g, [&](auto& seg, std::int64_t n, const MacrocellRuns& runs) {
+            march_backward(n, termination(), fwd, adj, seg, runs);
+        });
     }
     [[nodiscard]] int threads(std::size_t work) const {
         int n = base.s.threads > 0 ? base.s.threads
@@ -705,6 +820,22 @@ DiffRenderer::~DiffRenderer() = default;
 DiffRenderer::DiffRenderer(DiffRenderer&&) noexcept = default;
 DiffRenderer& DiffRenderer::operator=(DiffRenderer&&) noexcept = default;
 
+void DiffRenderer::skip_empty_density(bool on) {
+    if (impl_->density == nullptr)
+        throw Error("differentiable rendering", "skipping empty density needs pre-classified grids");
+    impl_->skip = false;
+    impl_->base.empty_space = {};
+    if (!on) return;
+    const IntegratorKind k = impl_->base.s.integrator;
+    const int shift = k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;  // as Renderer
+    impl_->base.empty_space = EmptySpace::for_density(*impl_->density, shift, impl_->base.s.threads);
+    impl_->skip = impl_->base.empty_space.any();
+}
+
+double DiffRenderer::empty_fraction() const {
+    return impl_->skip ? impl_->base.empty_space.empty_fraction() : 0.0;
+}
+
 const RenderSettings& DiffRenderer::settings() const {
     return impl_->base.s;
 }
@@ -735,31 +866,53 @@ void DiffRenderer::backward(const Ray& ray, const RayResult& forward, const RayA
 
 namespace {
 
-/// Zero gradients with the sizes of g.
-Gradients sized_like(const Gradients& g) {
-    Gradients r;
-    r.density.assign(g.density.size(), 0.0);
-    r.color.assign(g.color.size(), 0.0);
-    r.scalar.assign(g.scalar.size(), 0.0);
-    r.tf_alpha.assign(g.tf_alpha.size(), 0.0);
-    r.tf_color.assign(g.tf_color.size(), Rgb{0, 0, 0});
-    return r;
-}
-
 /// Per-thread gradient buffers: thread 0 adds into g itself, the others
-/// into zero buffers of g's sizes, added to g in thread order at the end.
+/// into zeroed buffers of g's sizes (from the pool), added to g in thread
+/// order at the end (the additions of each element in that order: the same
+/// result whichever way the reduction is split over threads).
 class ThreadBuffers {
 public:
-    ThreadBuffers(Gradients& g, int threads)
-        : g_(g), part_(static_cast<std::size_t>(threads - 1), sized_like(g)) {}
-    Gradients& operator[](int t) { return t == 0 ? g_ : part_[static_cast<std::size_t>(t - 1)]; }
-    void reduce() {
-        for (const Gradients& p : part_) g_ += p;
+    ThreadBuffers(Gradients& g, int threads, ScratchPool& pool) : g_(g), pool_(pool) {
+        for (int t = 1; t < threads; ++t) part_.push_back(pool.take(g));
+    }
+    ThreadBuffers(const ThreadBuffers&) = delete;
+    ThreadBuffers& operator=(const ThreadBuffers&) = delete;
+    ~ThreadBuffers() {
+        for (auto& p : part_) {
+            if (!reduced_) p->zero();  // (an exception left them dirty)
+            pool_.give(std::move(p));
+        }
+    }
+    Gradients& operator[](int t) { return t == 0 ? g_ : *part_[static_cast<std::size_t>(t - 1)]; }
+    /// Adds the buffers into g and zeroes them; the big arrays split over `threads`.
+    template <class Parallel>
+    void reduce(int threads, Parallel&& parallel) {
+        if (part_.empty()) return;
+        // Nodes: density (color: 3 per node) or scalar.
+        const std::size_t n = g_.density.empty() ? g_.scalar.size() : g_.density.size();
+        parallel(n, threads, [&](std::size_t b, std::size_t e, int) {
+            for (auto& p : part_) {
+                add_and_zero(g_.density, p->density, b, e);
+                add_and_zero(g_.color, p->color, 3 * b, 3 * e);
+                add_and_zero(g_.scalar, p->scalar, b, e);
+            }
+        });
+        for (auto& p : part_) {
+            add_and_zero(g_.tf_alpha, p->tf_alpha, 0, p->tf_alpha.size());
+            for (std::size_t i = 0; i < p->tf_color.size(); ++i)
+                for (int c = 0; c < 3; ++c) {
+                    g_.tf_color[i][c] += p->tf_color[i][c];
+                    p->tf_color[i][c] = 0.0;
+                }
+        }
+        reduced_ = true;
     }
 
 private:
     Gradients& g_;
-    std::vector<Gradients> part_;
+    ScratchPool& pool_;
+    std::vector<std::unique_ptr<Gradients>> part_;
+    bool reduced_ = false;
 };
 
 void check_offsets(std::span<const Ray> rays, std::span<const double> offsets) {
@@ -788,12 +941,12 @@ void DiffRenderer::backward(std::span<const Ray> rays, std::span<const RayResult
     if (forward.size() != rays.size() || adjoints.size() != rays.size())
         throw Error("backward", "rays, forward results and adjoints differ in number");
     const int nt = impl_->threads(rays.size());
-    ThreadBuffers buf(g, nt);
+    ThreadBuffers buf(g, nt, impl_->scratch);
     impl_->parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t i = b; i < e; ++i)
             impl_->backward(rays[i], forward[i], adjoints[i], buf[t], offsets.empty() ? -1.0 : offsets[i]);
     });
-    buf.reduce();
+    buf.reduce(nt, [&](std::size_t n, int threads, auto&& f) { impl_->parallel_blocks(n, threads, f); });
 }
 
 Image DiffRenderer::render(const Camera& camera) const {
@@ -822,7 +975,7 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
                                     std::to_string(4 * count) + "), got " + std::to_string(adjoint.size()));
     impl_->check_sizes(g);
     const int nt = impl_->threads(count);
-    ThreadBuffers buf(g, nt);
+    ThreadBuffers buf(g, nt, impl_->scratch);
     impl_->parallel_blocks(count, nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t k = b; k < e; ++k) {
             const float* a = &adjoint[4 * k];
@@ -835,7 +988,7 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
             impl_->backward(ray, fwd, {{a[0], a[1], a[2]}, a[3]}, buf[t], off);
         }
     });
-    buf.reduce();
+    buf.reduce(nt, [&](std::size_t n, int threads, auto&& f) { impl_->parallel_blocks(n, threads, f); });
 }
 
 }  // namespace fathom

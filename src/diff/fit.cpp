@@ -37,6 +37,7 @@ void FitOptions::validate() const {
     if (!(step > 0) || !std::isfinite(step)) fail("step must be positive");
     if (integrator == IntegratorKind::reference) fail("the reference integrator is not differentiable");
     if (threads < 0) fail("threads must be ≥ 0");
+    if (!(prune >= 0) || !std::isfinite(prune)) fail("prune must be ≥ 0");
 }
 
 namespace {
@@ -118,8 +119,8 @@ struct Fitter::Impl {
     Volume density, color;      // σ (1/world unit), c
     Volume m_d, v_d, m_c, v_c;  // Adam moments (density in the scaled unit)
     std::unique_ptr<DiffRenderer> renderer;
-    Gradients g;                       // kept from one iteration to the next, zero between batches
-    std::vector<std::size_t> touched;  // the nodes a batch reached
+    Gradients g;  // kept from one iteration to the next, zero between batches
+    std::vector<std::vector<std::size_t>> touched;  // the nodes a batch reached, per thread
 
     [[nodiscard]] RenderSettings settings(int w, int h) const { return fit::render_settings(o, w, h); }
     [[nodiscard]] double spacing() const { return density.spacing().x; }
@@ -143,6 +144,7 @@ struct Fitter::Impl {
         v_c = make_grid(o, n, 3);
         adam_t = 0;
         renderer = std::make_unique<DiffRenderer>(density, color, settings(1, 1));
+        if (o.skip_empty) renderer->skip_empty_density(true);
         g = renderer->make_gradients();
     }
 
@@ -164,23 +166,12 @@ struct Fitter::Impl {
         std::vector<RayAdjoint> adj;
         const double mse = fit::mse_adjoints(fwd, batch.target, adj);
         renderer->backward(batch.rays, fwd, adj, g, batch.offsets);
-        // Sparse ("lazy") updates: only the nodes this batch's rays reached
-        // (nonzero gradient) get a TV gradient and an Adam step, as sparse
-        // Adam does; others keep their values and moments. (A dense TV
-        // gradient would be normalised by Adam into full-size steps at nodes
-        // no ray constrains.)
-        touched.clear();
-        for (std::size_t n = 0; n < g.density.size(); ++n)
-            if (g.density[n] != 0.0 || g.color[3 * n] != 0.0 || g.color[3 * n + 1] != 0.0 ||
-                g.color[3 * n + 2] != 0.0)
-                touched.push_back(n);
         // Density is optimised as optical depth per voxel p = σ·s: ∂L/∂p = ∂L/∂σ / s.
         const double s = spacing();
-        double loss = mse;
-        ++adam_t;
         // The step sizes hold for the first grid and halve with each doubling:
         // a voxel's optical depth halves, and fewer rays reach each node.
         const double lr_scale = static_cast<double>(o.start_grid) / levels[static_cast<std::size_t>(level)];
+        ++adam_t;
         const fit::AdamStep step_d(o.lr_density * lr_scale, adam_t), step_c(o.lr_color * lr_scale, adam_t);
         float* xd = density.data<float>();
         float* md = m_d.data<float>();
@@ -188,24 +179,50 @@ struct Fitter::Impl {
         float* xc = color.data<float>();
         float* mc = m_c.data<float>();
         float* vc = v_c.data<float>();
-        // Gradients first (TV reads the values before any update), then steps.
-        for (const std::size_t n : touched) {
-            double gd = g.density[n] / s;
-            loss += tv_at(density, static_cast<std::int64_t>(n), 0, s, o.tv_density, gd);
-            g.density[n] = gd;
-            for (int c = 0; c < 3; ++c) {
-                double gc = g.color[3 * n + c];
-                loss += tv_at(color, static_cast<std::int64_t>(n), c, 1.0, o.tv_color, gc);
-                g.color[3 * n + c] = gc;
+        // Sparse ("lazy") updates: only the nodes this batch's rays reached
+        // (nonzero gradient) get a TV gradient and an Adam step, as sparse
+        // Adam does; others keep their values and moments. (A dense TV
+        // gradient would be normalised by Adam into full-size steps at nodes
+        // no ray constrains.) Node ranges over the threads: gradients first
+        // (TV reads the values before any update), then steps.
+        const int nt = fit::thread_count(o.threads);
+        touched.resize(static_cast<std::size_t>(nt));
+        std::vector<double> tv(static_cast<std::size_t>(nt), 0.0);
+        fit::parallel_blocks(g.density.size(), nt, [&](std::size_t b, std::size_t e, int t) {
+            auto& mine = touched[static_cast<std::size_t>(t)];
+            mine.clear();
+            double share = 0;
+            for (std::size_t n = b; n < e; ++n) {
+                if (g.density[n] == 0.0 && g.color[3 * n] == 0.0 && g.color[3 * n + 1] == 0.0 &&
+                    g.color[3 * n + 2] == 0.0)
+                    continue;
+                mine.push_back(n);
+                double gd = g.density[n] / s;
+                share += tv_at(density, static_cast<std::int64_t>(n), 0, s, o.tv_density, gd);
+                g.density[n] = gd;
+                for (int c = 0; c < 3; ++c) {
+                    double gc = g.color[3 * n + c];
+                    share += tv_at(color, static_cast<std::int64_t>(n), c, 1.0, o.tv_color, gc);
+                    g.color[3 * n + c] = gc;
+                }
             }
-        }
-        for (const std::size_t n : touched) {
-            step_d(xd[n], md[n], vd[n], g.density[n], s, 0.0, INFINITY);
-            for (std::size_t c = 0; c < 3; ++c)
-                step_c(xc[3 * n + c], mc[3 * n + c], vc[3 * n + c], g.color[3 * n + c], 1.0, 0.0, 1.0);
-            g.density[n] = 0.0;  // zero for the next batch
-            for (std::size_t c = 0; c < 3; ++c) g.color[3 * n + c] = 0.0;
-        }
+            tv[static_cast<std::size_t>(t)] = share;
+        });
+        double loss = mse;
+        for (const double v : tv) loss += v;
+        fit::parallel_blocks(touched.size(), nt, [&](std::size_t b, std::size_t e, int) {
+            for (std::size_t t = b; t < e; ++t)
+                for (const std::size_t n : touched[t]) {
+                    step_d(xd[n], md[n], vd[n], g.density[n], s, 0.0, INFINITY);
+                    if (xd[n] * s < o.prune) xd[n] = 0.0f;  // pruned: exactly empty
+                    for (std::size_t c = 0; c < 3; ++c)
+                        step_c(xc[3 * n + c], mc[3 * n + c], vc[3 * n + c], g.color[3 * n + c], 1.0, 0.0,
+                               1.0);
+                    g.density[n] = 0.0;  // zero for the next batch
+                    for (std::size_t c = 0; c < 3; ++c) g.color[3 * n + c] = 0.0;
+                }
+        });
+        if (o.skip_empty) renderer->skip_empty_density(true);  // the macrocells of the new density
         ++iteration;
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return {iteration, levels[static_cast<std::size_t>(level)], loss, fit::psnr_of(mse),
@@ -324,6 +341,7 @@ Fitter Fitter::resume(const ViewSet& train, FitOptions options, const fs::path& 
     load("adam_m_color.nrrd", im.m_c);
     load("adam_v_color.nrrd", im.v_c);
     im.renderer = std::make_unique<DiffRenderer>(im.density, im.color, im.settings(1, 1));
+    if (options.skip_empty) im.renderer->skip_empty_density(true);
     return f;
 }
 
