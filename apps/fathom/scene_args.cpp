@@ -52,76 +52,35 @@ std::string scene_from_flags(const SceneArgs& a) {
         .dump();
 }
 
-void apply_overrides(RenderSettings& s, const SceneArgs& a) {
-    const std::string flag = "command line";
-    if (a.o_width->count()) s.width = a.width;
-    if (a.o_height->count()) s.height = a.height;
-    if (!a.model.empty()) s.model = parse_model(a.model, flag);
-    if (!a.integrator.empty()) s.integrator = parse_integrator(a.integrator, flag);
-    if (!a.order.empty()) s.order = parse_order(a.order, flag);
-    if (!a.sample_point.empty()) s.sample_point = parse_sample_point(a.sample_point, flag);
-    if (!a.step_unit.empty()) s.step_world = a.step_unit == "world";
-    if (a.o_step->count()) s.step = a.step;
-    if (a.o_termination->count()) s.termination = a.termination;
-    if (a.o_threads->count()) s.threads = a.threads;
-    if (a.jitter) s.jitter = true;
-    if (a.no_skip_empty) s.skip_empty = false;
-    if (a.no_simd) s.simd = false;
-    if (a.shade) s.shading.enabled = true;
-    if (!a.gradient.empty()) {
-        if (a.gradient != "on-the-fly" && a.gradient != "precomputed")
-            throw UsageError("--gradient must be on-the-fly or precomputed, got '" + a.gradient + "'");
-        s.gradient = a.gradient == "precomputed" ? GradientSource::precomputed : GradientSource::on_the_fly;
-    }
-    if (!a.isos.empty()) {
-        s.isosurfaces.clear();
-        for (const auto& text : a.isos) {
-            const auto v = parse_numbers(text, "--iso");
-            if (v.size() != 1 && v.size() != 4 && v.size() != 5)
-                throw UsageError("--iso expects VALUE[,R,G,B[,OPACITY]]");
-            IsoSurface iso;
-            iso.value = v[0];
-            if (v.size() >= 4) iso.color = {v[1], v[2], v[3]};
-            if (v.size() == 5) iso.opacity = v[4];
-            s.isosurfaces.push_back(iso);
-        }
-        if (a.model.empty()) s.model = Model::isosurface;
-    }
-    if (!a.phong.empty()) {
-        const auto v = parse_numbers(a.phong, "--phong");
-        if (v.size() != 4) throw UsageError("--phong expects AMBIENT,DIFFUSE,SPECULAR,SHININESS");
-        s.shading.enabled = true;
-        s.shading.ambient = v[0];
-        s.shading.diffuse = v[1];
-        s.shading.specular = v[2];
-        s.shading.shininess = v[3];
-    }
-    if (!a.crop.empty()) {
-        const auto v = parse_numbers(a.crop, "--crop");
-        if (v.size() != 6) throw UsageError("--crop expects X0,Y0,Z0,X1,Y1,Z1 (world coordinates)");
-        s.crop = WorldBox{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
-    }
-    if (!a.clip_planes.empty()) {
-        s.clip_planes.clear();
-        for (const auto& text : a.clip_planes) {
-            const auto v = parse_numbers(text, "--clip-plane");
-            if (v.size() != 6)
-                throw UsageError("--clip-plane expects PX,PY,PZ,NX,NY,NZ (a point and a normal)");
-            s.clip_planes.push_back({{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
-        }
-    }
-    if (a.o_seed->count()) s.jitter_seed = a.jitter_seed;
-    if (!a.background.empty()) {
-        if (a.background == "transparent") {
-            s.transparent = true;
-        } else {
-            const auto v = parse_numbers(a.background, "--background");
-            if (v.size() != 3) throw UsageError("--background expects R,G,B or 'transparent'");
-            s.background = Rgb{v[0], v[1], v[2]};
-            s.transparent = false;
-        }
-    }
-    s.validate();
+// The flags as the library's overrides (parsed here, applied by
+// fathom::apply_overrides, which the Python module shares).
+SceneOverrides to_overrides(const SceneArgs& a) {
+    SceneOverrides o;
+    if (a.o_width->count()) o.width = a.width;
+    if (a.o_height->count()) o.height = a.height;
+    if (a.o_threads->count()) o.threads = a.threads;
+    o.model = a.model;
+    o.integrator = a.integrator;
+    o.order = a.order;
+    o.sample_point = a.sample_point;
+    o.step_unit = a.step_unit;
+    o.gradient = a.gradient;
+    if (a.o_step->count()) o.step = a.step;
+    if (a.o_termination->count()) o.termination = a.termination;
+    o.jitter = a.jitter;
+    o.no_skip_empty = a.no_skip_empty;
+    o.no_simd = a.no_simd;
+    o.shade = a.shade;
+    if (a.o_seed->count()) o.jitter_seed = a.jitter_seed;
+    for (const auto& text : a.isos) o.isos.push_back(parse_numbers(text, "--iso"));
+    if (!a.phong.empty()) o.phong = parse_numbers(a.phong, "--phong");
+    if (!a.crop.empty()) o.crop = parse_numbers(a.crop, "--crop");
+    for (const auto& text : a.clip_planes) o.clip_planes.push_back(parse_numbers(text, "--clip-plane"));
+    if (a.background == "transparent")
+        o.transparent = true;
+    else if (!a.background.empty())
+        o.background = parse_numbers(a.background, "--background");
+    return o;
 }
 
 }  // namespace
@@ -194,8 +153,9 @@ Scene SceneArgs::load(const std::string& command) const {
             "--tf, --preset, --orbit, --series and --grid go with --volume, not with a scene file");
     Scene sc =
         scene.empty() ? parse_scene(scene_from_flags(*this), fs::current_path(), volume) : load_scene(scene);
+    const SceneOverrides overrides = to_overrides(*this);
     try {
-        apply_overrides(sc.settings, *this);
+        apply_overrides(sc.settings, overrides, "command line");
     } catch (const Error& e) {
         throw UsageError(e.reason());
     }
