@@ -55,22 +55,12 @@ std::string scene_from_flags(const SceneArgs& a) {
 // The flags as the library's overrides (parsed here, applied by
 // fathom::apply_overrides, which the Python module shares).
 SceneOverrides to_overrides(const SceneArgs& a) {
-    SceneOverrides o;
+    SceneOverrides o = a.overrides;
     if (a.o_width->count()) o.width = a.width;
     if (a.o_height->count()) o.height = a.height;
     if (a.o_threads->count()) o.threads = a.threads;
-    o.model = a.model;
-    o.integrator = a.integrator;
-    o.order = a.order;
-    o.sample_point = a.sample_point;
-    o.step_unit = a.step_unit;
-    o.gradient = a.gradient;
     if (a.o_step->count()) o.step = a.step;
     if (a.o_termination->count()) o.termination = a.termination;
-    o.jitter = a.jitter;
-    o.no_skip_empty = a.no_skip_empty;
-    o.no_simd = a.no_simd;
-    o.shade = a.shade;
     if (a.o_seed->count()) o.jitter_seed = a.jitter_seed;
     for (const auto& text : a.isos) o.isos.push_back(parse_numbers(text, "--iso"));
     if (!a.phong.empty()) o.phong = parse_numbers(a.phong, "--phong");
@@ -103,34 +93,34 @@ void SceneArgs::add_to(CLI::App* cmd) {
         "Orbit camera AZ,EL[,DIST] in degrees (distance in half box diagonals, default 3), with --volume");
     this->o_width = cmd->add_option("--width", this->width, "Image width in pixels (default 512)");
     this->o_height = cmd->add_option("--height", this->height, "Image height in pixels (default 512)");
-    cmd->add_option("--model", this->model,
+    cmd->add_option("--model", this->overrides.model,
                     "emission-absorption (default), absorption, emission, mip, minip, average or isosurface");
-    cmd->add_option("--integrator", this->integrator,
+    cmd->add_option("--integrator", this->overrides.integrator,
                     "preintegrated (default), preintegrated-simple, alpha, riemann or reference");
     this->o_step = cmd->add_option("--step", this->step,
                                    "Step: in voxels (smallest spacing) by default, see --step-unit");
-    cmd->add_option("--step-unit", this->step_unit, "voxel (default) or world")
+    cmd->add_option("--step-unit", this->overrides.step_unit, "voxel (default) or world")
         ->check(CLI::IsMember({"voxel", "world"}));
-    cmd->add_option("--sample-point", this->sample_point, "near (default) or mid");
-    cmd->add_option("--order", this->order, "front-to-back (default) or back-to-front");
+    cmd->add_option("--sample-point", this->overrides.sample_point, "near (default) or mid");
+    cmd->add_option("--order", this->overrides.order, "front-to-back (default) or back-to-front");
     this->o_termination = cmd->add_option("--termination", this->termination,
                                           "Early-termination threshold on T (default 0.001; 0 never stops)");
     cmd->add_option("--background", this->background, "R,G,B or 'transparent'");
     this->o_threads = cmd->add_option("--threads", this->threads, "Threads (default: all cores)")
                           ->check(CLI::NonNegativeNumber);
-    cmd->add_flag("--jitter", this->jitter,
+    cmd->add_flag("--jitter", this->overrides.jitter,
                   "Hashed per-pixel sample offsets for riemann/alpha (wood-grain to noise)");
     this->o_seed = cmd->add_option("--jitter-seed", this->jitter_seed, "Seed of the jitter (default 0)");
-    cmd->add_option("--gradient", this->gradient,
+    cmd->add_option("--gradient", this->overrides.gradient,
                     "Gradient for --shade and gradient opacity: on-the-fly (default: central differences "
                     "of the trilinear field) or precomputed (a node-gradient volume, 12 bytes per voxel)");
-    cmd->add_flag("--no-skip-empty", this->no_skip_empty,
+    cmd->add_flag("--no-skip-empty", this->overrides.no_skip_empty,
                   "Turn off exact empty-space skipping (same image; to measure what it buys)");
     cmd->add_option("--iso", this->isos,
                     "Isosurface VALUE[,R,G,B[,OPACITY]] in the volume's units; repeat for several; selects "
                     "--model isosurface unless --model is given");
     cmd->add_flag(
-        "--shade", this->shade,
+        "--shade", this->overrides.shade,
         "Gradient shading (Blinn-Phong, head light unless the scene sets lights; emission-absorption)");
     cmd->add_option("--phong", this->phong,
                     "Shading coefficients AMBIENT,DIFFUSE,SPECULAR,SHININESS (implies --shade; default "
@@ -140,7 +130,7 @@ void SceneArgs::add_to(CLI::App* cmd) {
     cmd->add_option("--clip-plane", this->clip_planes,
                     "Clipping plane PX,PY,PZ,NX,NY,NZ (point, normal; keeps the side the normal points to); "
                     "repeat for up to 6; replaces the scene's");
-    cmd->add_flag("--no-simd", this->no_simd,
+    cmd->add_flag("--no-simd", this->overrides.no_simd,
                   "Turn off SIMD sample classification (same image; to measure it)");
 }
 
