@@ -1,11 +1,19 @@
 """fathom.torch: gradcheck in float64, agreement with a pure-PyTorch alpha quadrature, errors."""
+import sys
+
 import numpy as np
 import pytest
 
 import fathom
+from conftest import ROOT
 
 torch = pytest.importorskip("torch")
 import fathom.torch as ft  # noqa: E402  (needs torch)
+
+# The project's pure-PyTorch alpha quadrature (SPEC §5; autograd through trilinear sampling by
+# index math), which bench/peers/torch also checks fathom's C++ gradients against.
+sys.path.insert(0, str(ROOT / "bench" / "peers" / "torch"))
+from torch_alpha import render as reference_alpha  # noqa: E402
 
 
 def grids(n=4, dtype=torch.float64, seed=0):
@@ -44,46 +52,6 @@ def test_gradcheck_scalar_volume_and_tf():
         assert torch.autograd.gradcheck(fn, (volume, alpha, color), eps=1e-6, atol=1e-8, rtol=1e-6)
 
 
-def reference_alpha(density, color, origins, dirs, step):
-    """The alpha quadrature in pure PyTorch (SPEC §5) over a unit lattice [0, n-1]^3 at the origin:
-    uniform segments of each ray's span in the box, one trilinear sample at each segment's near
-    end, alpha_i = 1 - exp(-sigma_i delta), C = sum T_(i-1) alpha_i c_i, alpha = 1 - T (black
-    background, no early termination). Returns (rays, 4)."""
-    n = density.shape[0]
-    hi = float(n - 1)
-    with torch.no_grad():
-        safe = torch.where(dirs == 0, torch.full_like(dirs, 1e-300), dirs)
-        ta, tb = (0.0 - origins) / safe, (hi - origins) / safe
-        t0 = torch.clamp(torch.minimum(ta, tb).max(dim=1).values, min=0.0)
-        t1 = torch.maximum(ta, tb).min(dim=1).values
-        hit = t1 > t0
-        length = torch.where(hit, t1 - t0, torch.zeros_like(t0))
-        segs = torch.clamp(torch.ceil(length / step), min=1).long()
-        delta = length / segs
-        j = torch.arange(int(segs.max()), dtype=torch.float64)
-        valid = (j[None, :] < segs[:, None]) & hit[:, None]
-        p = origins[:, None, :] + (t0[:, None] + j[None, :] * delta[:, None])[..., None] * dirs[:, None, :]
-        p = torch.clamp(p, 0.0, hi)
-        i0 = torch.clamp(torch.floor(p).long(), max=n - 2)
-        f = p - i0
-    flat_d, flat_c = density.reshape(-1), color.reshape(-1, 3)
-    sigma = torch.zeros(p.shape[:2], dtype=torch.float64)
-    col = torch.zeros(p.shape[:2] + (3,), dtype=torch.float64)
-    for dz in (0, 1):
-        for dy in (0, 1):
-            for dx in (0, 1):
-                w = ((f[..., 0] if dx else 1 - f[..., 0]) * (f[..., 1] if dy else 1 - f[..., 1]) *
-                     (f[..., 2] if dz else 1 - f[..., 2]))
-                k = (i0[..., 0] + dx) + n * ((i0[..., 1] + dy) + n * (i0[..., 2] + dz))  # x fastest
-                sigma = sigma + w * flat_d[k]
-                col = col + w[..., None] * flat_c[k]
-    tau = sigma * delta[:, None] * valid
-    alpha = 1.0 - torch.exp(-tau)
-    t_before = torch.exp(-(torch.cumsum(tau, dim=1) - tau))
-    radiance = ((t_before * alpha)[..., None] * col).sum(dim=1)
-    return torch.cat([radiance, (1.0 - torch.exp(-tau.sum(dim=1)))[:, None]], dim=1)
-
-
 def test_agrees_with_pure_pytorch_alpha_quadrature():
     n, w, h, step = 6, 9, 7, 0.6
     density, color = grids(n, seed=2)
@@ -91,8 +59,8 @@ def test_agrees_with_pure_pytorch_alpha_quadrature():
     ours = ft.render_grids(density, color, cam, width=w, height=h, integrator="alpha", step=step,
                            termination=0.0)
     o, d = cam.rays(w, h)
-    ref = reference_alpha(density, color, torch.from_numpy(o.reshape(-1, 3)), torch.from_numpy(d.reshape(-1, 3)),
-                          step).reshape(h, w, 4)
+    rays = torch.from_numpy(np.concatenate([o, d], axis=2).reshape(-1, 6))
+    ref = reference_alpha(density, color, rays, n, step).reshape(h, w, 4)
     assert ref[..., 3].max() > 0.5 and ref[..., 3].min() == 0.0  # the volume and the background are both seen
     assert torch.allclose(ours, ref, rtol=0, atol=1e-12)
     weights = torch.rand((h, w, 4), generator=torch.Generator().manual_seed(5), dtype=torch.float64)
