@@ -236,6 +236,10 @@ RenderSettings settings_from(const py::kwargs& kw, const std::string& fn) {
 
 // --- cameras and transfer functions ----------------------------------------
 
+std::string projection_name(const Camera& c) {
+    return c.projection == Projection::perspective ? "perspective" : "orthographic";
+}
+
 Camera with_projection(Camera c, const std::string& projection, std::optional<double> fov_y,
                        std::optional<double> height) {
     if (projection != "perspective" && projection != "orthographic")
@@ -662,10 +666,7 @@ PYBIND11_MODULE(_fathom, m) {
             py::arg("fov_y") = py::none(), py::arg("height") = py::none(),
             "A 4x4 row-major camera-to-world matrix, looking down -Z with +Y up (OpenGL / NeRF).")
         .def_property(
-            "projection",
-            [](const Camera& c) {
-                return c.projection == Projection::perspective ? "perspective" : "orthographic";
-            },
+            "projection", [](const Camera& c) { return projection_name(c); },
             [](Camera& c, const std::string& p) { c = with_projection(c, p, {}, {}); })
         .def_property_readonly("position", [](const Camera& c) { return arr3(c.position); })
         .def_property_readonly("forward", [](const Camera& c) { return arr3(c.forward); })
@@ -673,16 +674,10 @@ PYBIND11_MODULE(_fathom, m) {
         .def_property_readonly("up", [](const Camera& c) { return arr3(c.up); })
         .def_property(
             "fov_y", [](const Camera& c) { return c.fov_y_deg; },
-            [](Camera& c, double f) {
-                c = with_projection(
-                    c, c.projection == Projection::perspective ? "perspective" : "orthographic", f, {});
-            })
+            [](Camera& c, double f) { c = with_projection(c, projection_name(c), f, {}); })
         .def_property(
             "height", [](const Camera& c) { return c.height; },
-            [](Camera& c, double h) {
-                c = with_projection(
-                    c, c.projection == Projection::perspective ? "perspective" : "orthographic", {}, h);
-            })
+            [](Camera& c, double h) { c = with_projection(c, projection_name(c), {}, h); })
         .def("to_matrix",
              [](const Camera& c) {
                  const auto mat = c.to_matrix();
