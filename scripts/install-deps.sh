@@ -7,6 +7,7 @@ packages=(
   libnifti2-dev libniftiio-dev libgdcm-dev libopenvdb-dev
   libavformat-dev libavcodec-dev libswscale-dev
   libgtest-dev libbenchmark-dev libhwy-dev
+  python3-dev pybind11-dev python3-numpy python3-pytest python3-torch
 )
 missing=()
 for p in "${packages[@]}"; do

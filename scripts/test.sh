@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One command from a fresh Debian 12 machine to a tested build: installs the
 # packages, builds and runs every test (Release), then builds and runs them
-# again under AddressSanitizer + UndefinedBehaviorSanitizer.
+# again under AddressSanitizer + UndefinedBehaviorSanitizer. The Python module
+# is built and its pytest suite run in the Release build only.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
@@ -12,11 +13,24 @@ cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DFATHOM_WERROR=ON -DFAT
 cmake --build build --parallel "$jobs"
 ctest --test-dir build --output-on-failure --parallel "$jobs"
 
+echo "== Python tests (the module in build/python, Debian's python3)"
+if [ -d build/python/fathom ]; then
+  status=0
+  PYTHONPATH=build/python /usr/bin/python3 -m pytest -q -p no:cacheprovider python/tests || status=$?
+  if [ "$status" -eq 5 ]; then
+    echo "pytest collected no tests"  # exit code 5: not a failure
+  elif [ "$status" -ne 0 ]; then
+    exit "$status"
+  fi
+else
+  echo "the Python module was not built (FATHOM_BUILD_PYTHON=OFF): no Python tests"
+fi
+
 echo "== ASan + UBSan build and tests"
 # -O1 -g1: line tables for the sanitizers' reports at half the compile time of
 # RelWithDebInfo's -O2 -g (the CI budget is 2 cores).
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
-  -DFATHOM_SANITIZE=ON -DFATHOM_WERROR=ON
+  -DFATHOM_SANITIZE=ON -DFATHOM_WERROR=ON -DFATHOM_BUILD_PYTHON=OFF
 cmake --build build-asan --parallel "$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure --parallel "$jobs"

@@ -238,3 +238,61 @@ TEST(Scene, IsosurfaceKeys) {
                   .find("value"),
               std::string::npos);
 }
+
+TEST(Scene, OverridesReplaceOnlyWhatIsSet) {
+    RenderSettings s;
+    s.step = 0.25;
+    s.clip_planes.push_back({{0, 0, 0}, {1, 0, 0}});
+    SceneOverrides o;
+    o.width = 32;
+    o.integrator = "alpha";
+    o.step_unit = "world";
+    o.isos = {{5}, {7, 1, 0, 0, 0.5}};
+    o.background = {0.1, 0.2, 0.3};
+    apply_overrides(s, o, "test");
+    EXPECT_EQ(s.width, 32);
+    EXPECT_EQ(s.height, 512);  // not set: kept
+    EXPECT_DOUBLE_EQ(s.step, 0.25);
+    EXPECT_TRUE(s.step_world);
+    EXPECT_EQ(s.integrator, IntegratorKind::alpha);
+    EXPECT_EQ(s.model, Model::isosurface);  // isosurfaces select the model unless it is given
+    ASSERT_EQ(s.isosurfaces.size(), 2u);
+    EXPECT_DOUBLE_EQ(s.isosurfaces[1].opacity, 0.5);
+    EXPECT_EQ(s.clip_planes.size(), 1u);  // none given: the scene's kept
+    EXPECT_EQ(s.background_radiance(), (Rgb{0.1, 0.2, 0.3}));
+    SceneOverrides t;
+    t.transparent = true;
+    apply_overrides(s, t, "test");
+    EXPECT_TRUE(s.transparent);
+}
+
+TEST(Scene, OverrideErrorsNameTheFlag) {
+    const auto error_of = [](const SceneOverrides& o) {
+        RenderSettings s;
+        try {
+            apply_overrides(s, o, "subject");
+        } catch (const Error& e) {
+            EXPECT_EQ(e.subject() == "subject" || e.subject() == "render settings", true) << e.what();
+            return e.reason();
+        }
+        return std::string();
+    };
+    SceneOverrides o;
+    o.crop = {1, 2, 3};
+    EXPECT_NE(error_of(o).find("--crop expects"), std::string::npos);
+    o = {};
+    o.clip_planes = {{0, 0, 0, 1, 0, 0}, {1}};
+    EXPECT_NE(error_of(o).find("--clip-plane"), std::string::npos);
+    o = {};
+    o.step_unit = "furlong";
+    EXPECT_NE(error_of(o).find("--step-unit"), std::string::npos);
+    o = {};
+    o.integrator = "simpson";
+    EXPECT_NE(error_of(o).find("simpson"), std::string::npos);
+    o = {};
+    o.step = -1;
+    EXPECT_NE(error_of(o).find("step"), std::string::npos);
+    o = {};
+    o.background = {1, 1};
+    EXPECT_NE(error_of(o).find("--background"), std::string::npos);
+}

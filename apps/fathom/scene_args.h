@@ -16,13 +16,11 @@ struct SceneArgs {
     std::string scene, volume, series, grid, tf, preset, orbit, background, crop, phong;
     std::vector<std::string> clip_planes, isos;
     int width = 0, height = 0, threads = 0;
-    std::string model, integrator, order, sample_point, step_unit, gradient;
     double step = 0, termination = 0;
-    bool jitter = false;
-    bool no_skip_empty = false;
-    bool no_simd = false;
-    bool shade = false;
     std::uint32_t jitter_seed = 0;
+    /// The flags that need no parsing (names and switches), bound directly;
+    /// load() adds the numbers and lists parsed from the other flags.
+    SceneOverrides overrides;
     CLI::Option* o_seed{};
     CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_termination{}, *o_threads{};
 

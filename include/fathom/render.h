@@ -180,6 +180,12 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
+/// The sample offset in [0, 1) of pixel (x, y) under jitter
+/// (RenderSettings::jitter): a hash of (x, y, seed), deterministic and
+/// independent of the thread count (a 32-bit integer hash, "lowbias32").
+/// For callers that trace a camera's rays one by one (DiffRenderer's ray API).
+double jitter_offset(int x, int y, std::uint32_t seed);
+
 /// Centre and half-diagonal of a volume's box (for orbit cameras).
 struct Bounds {
     Vec3 center;

@@ -379,6 +379,78 @@ Scene parse_scene(std::string_view json_text, const fs::path& base_dir, const st
     return sc;
 }
 
+void apply_overrides(RenderSettings& s, const SceneOverrides& o, const std::string& subject) {
+    const auto fail = [&](const std::string& reason) { throw Error(subject, reason); };
+    if (o.width) s.width = *o.width;
+    if (o.height) s.height = *o.height;
+    if (!o.model.empty()) s.model = parse_model(o.model, subject);
+    if (!o.integrator.empty()) s.integrator = parse_integrator(o.integrator, subject);
+    if (!o.order.empty()) s.order = parse_order(o.order, subject);
+    if (!o.sample_point.empty()) s.sample_point = parse_sample_point(o.sample_point, subject);
+    if (!o.step_unit.empty()) {
+        if (o.step_unit != "voxel" && o.step_unit != "world")
+            fail("--step-unit must be voxel or world, got '" + o.step_unit + "'");
+        s.step_world = o.step_unit == "world";
+    }
+    if (o.step) s.step = *o.step;
+    if (o.termination) s.termination = *o.termination;
+    if (o.threads) s.threads = *o.threads;
+    if (o.jitter) s.jitter = true;
+    if (o.no_skip_empty) s.skip_empty = false;
+    if (o.no_simd) s.simd = false;
+    if (o.shade) s.shading.enabled = true;
+    if (!o.gradient.empty()) {
+        if (o.gradient != "on-the-fly" && o.gradient != "precomputed")
+            fail("--gradient must be on-the-fly or precomputed, got '" + o.gradient + "'");
+        s.gradient = o.gradient == "precomputed" ? GradientSource::precomputed : GradientSource::on_the_fly;
+    }
+    if (!o.isos.empty()) {
+        s.isosurfaces.clear();
+        for (const auto& v : o.isos) {
+            if (v.size() != 1 && v.size() != 4 && v.size() != 5)
+                fail("--iso expects VALUE[,R,G,B[,OPACITY]]");
+            IsoSurface iso;
+            iso.value = v[0];
+            if (v.size() >= 4) iso.color = {v[1], v[2], v[3]};
+            if (v.size() == 5) iso.opacity = v[4];
+            s.isosurfaces.push_back(iso);
+        }
+        if (o.model.empty()) s.model = Model::isosurface;
+    }
+    if (!o.phong.empty()) {
+        const auto& v = o.phong;
+        if (v.size() != 4) fail("--phong expects AMBIENT,DIFFUSE,SPECULAR,SHININESS");
+        s.shading.enabled = true;
+        s.shading.ambient = v[0];
+        s.shading.diffuse = v[1];
+        s.shading.specular = v[2];
+        s.shading.shininess = v[3];
+    }
+    if (!o.crop.empty()) {
+        const auto& v = o.crop;
+        if (v.size() != 6) fail("--crop expects X0,Y0,Z0,X1,Y1,Z1 (world coordinates)");
+        s.crop = WorldBox{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
+    }
+    if (!o.clip_planes.empty()) {
+        s.clip_planes.clear();
+        for (const auto& v : o.clip_planes) {
+            if (v.size() != 6) fail("--clip-plane expects PX,PY,PZ,NX,NY,NZ (a point and a normal)");
+            s.clip_planes.push_back({{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
+        }
+    }
+    if (o.jitter_seed) s.jitter_seed = *o.jitter_seed;
+    if (o.transparent) {
+        if (!o.background.empty()) fail("--background takes R,G,B or 'transparent', not both");
+        s.transparent = true;
+    } else if (!o.background.empty()) {
+        const auto& v = o.background;
+        if (v.size() != 3) fail("--background expects R,G,B or 'transparent'");
+        s.background = Rgb{v[0], v[1], v[2]};
+        s.transparent = false;
+    }
+    s.validate();
+}
+
 Scene load_scene(const fs::path& path) {
     const std::string text = read_text_file(path);
     return parse_scene(text, path.parent_path(), path.string());

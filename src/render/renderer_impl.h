@@ -84,9 +84,6 @@ struct Renderer::Impl {
     }
 };
 
-/// A per-pixel offset in [0, 1), a hash of (x, y, seed): deterministic and
-/// independent of the thread count (a 32-bit integer hash, "lowbias32").
-double jitter_offset(int x, int y, std::uint32_t seed);
 /// Throws Error(what) unless every dimension has at least 2 samples.
 void check_lattice(const Volume& v, const std::string& what);
 /// Validates the settings and sets the lattice, its transform, the step in
