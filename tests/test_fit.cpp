@@ -96,20 +96,48 @@ TEST(Fit, ReconstructsKnownGridsFromTheirViews) {
     EXPECT_LT(f.density().value(0, 0, 0), 0.05);
 }
 
+TEST(Fit, PruningEmptiesBlocksAwayFromTheObjectAndSkipsThem) {
+    const Truth t = make_truth();
+    const ViewSet train = render_views(t, 24, 24, 0.0), test = render_views(t, 6, 24, 0.5);
+    FitOptions o = small_options();
+    o.prune = 0.02;
+    Fitter f(train, o);
+    FitStats last;
+    while (!f.done()) last = f.step();
+    const double after = f.psnr(test);
+    std::printf("[fit] pruned: held-out PSNR %.2f dB, %.0f %% of the macrocells skipped\n", after,
+                100.0 * last.empty);
+    EXPECT_GT(after, 30.0);
+    EXPECT_GT(last.empty, 0.0);
+    // Blocks of 4³ cells far from the ball (radius 5 about the center) are exactly 0 ...
+    EXPECT_EQ(f.density().value(13, 13, 13), 0.0);
+    EXPECT_EQ(f.density().value(13, 1, 2), 0.0);
+    // ... the ball is not.
+    EXPECT_GT(f.density().value(6, 7, 7), 0.15);
+    // Without pruning, nothing is skipped.
+    o.prune = 0;
+    Fitter g(train, o);
+    for (int i = 0; i < 100; ++i) last = g.step();
+    EXPECT_EQ(last.empty, 0.0);
+}
+
 TEST(Fit, ResumingGivesTheUninterruptedResult) {
     const Truth t = make_truth();
     const ViewSet train = render_views(t, 8, 16, 0.0);
     FitOptions o = small_options();
-    o.iterations = 40;  // crosses the 7 → 14 grid change at 20
+    o.iterations = 120;  // crosses the 7 → 14 grid change at 60; prunes at 50 and 100
     o.batch = 128;
+    o.prune = 0.02;
     Fitter whole(train, o);
-    while (!whole.done()) (void)whole.step();
+    FitStats last;
+    while (!whole.done()) last = whole.step();
+    EXPECT_GT(last.empty, 0.0);  // the checkpoint below carries pruned blocks
     TempDir d;
     Fitter first(train, o);
-    for (int i = 0; i < 25; ++i) (void)first.step();
+    for (int i = 0; i < 105; ++i) (void)first.step();
     first.save_checkpoint(d / "ckpt");
     Fitter second = Fitter::resume(train, o, d / "ckpt");
-    EXPECT_EQ(second.iteration(), 25);
+    EXPECT_EQ(second.iteration(), 105);
     while (!second.done()) (void)second.step();
     ASSERT_EQ(whole.density().dims(), second.density().dims());
     EXPECT_EQ(0,
@@ -312,6 +340,7 @@ TEST(FitCli, ViewsThenFitThenRender) {
         EXPECT_TRUE(fs::exists(d / "out" / f)) << f;
     const std::string log = test::read_file_bytes(d / "out" / "log.csv");
     EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 31);  // header + 30 iterations
+    EXPECT_EQ(log.substr(0, log.find('\n')), "iteration,seconds,grid,loss,batch_psnr,test_psnr,empty");
     EXPECT_NE(log.find("\n30,"), std::string::npos);
     const auto render =
         test::run_cli("render " + (d / "out" / "scene.json").string() + " -o " + (d / "fit.pfm").string(), d);

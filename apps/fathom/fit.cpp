@@ -81,7 +81,7 @@ void run_fit(FitArgs a) {
     Fitter f = a.resume ? Fitter::resume(train, o, ckpt) : Fitter(train, o);
     const bool tty = !a.quiet && isatty(STDERR_FILENO);
     std::ofstream log(out / "log.csv", a.resume ? std::ios::app : std::ios::trunc);
-    if (!a.resume) log << "iteration,seconds,grid,loss,batch_psnr,test_psnr\n";
+    if (!a.resume) log << "iteration,seconds,grid,loss,batch_psnr,test_psnr,empty\n";
     const auto start = std::chrono::steady_clock::now();
     auto elapsed = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -96,7 +96,7 @@ void run_fit(FitArgs a) {
             test && (f.done() || level_end || (a.eval_every > 0 && st.iteration % a.eval_every == 0));
         if (eval) test_psnr = std::to_string(f.psnr(*test));
         log << st.iteration << ',' << elapsed() << ',' << st.grid << ',' << st.loss << ',' << st.psnr << ','
-            << test_psnr << '\n';
+            << test_psnr << ',' << st.empty << '\n';
         if (tty) {
             const int width = 30, filled = width * st.iteration / o.iterations;
             std::fprintf(stderr, "\r[%s%s] %d/%d grid %d loss %.3g PSNR %.2f dB %.0f rays/s%s%s\033[K",
@@ -139,8 +139,8 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--lr-density", a->o.lr_density,
                     "Adam step of the density, optical depth per voxel (0.01)");
     cmd->add_option("--lr-color", a->o.lr_color, "Adam step of the color (0.01)");
-    cmd->add_option("--tv-density", a->o.tv_density, "Total-variation weight of the density (1e-4)");
-    cmd->add_option("--tv-color", a->o.tv_color, "Total-variation weight of the color (1e-4)");
+    cmd->add_option("--tv-density", a->o.tv_density, "Total-variation weight of the density (3e-3)");
+    cmd->add_option("--tv-color", a->o.tv_color, "Total-variation weight of the color (3e-3)");
     cmd->add_option("--background", a->background,
                     "What transparent pixels show: white, black or R,G,B (white)");
     cmd->add_option("--bounds", a->bounds,
@@ -150,10 +150,12 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--step", a->o.step, "Sample step in voxels of the current grid (0.5)");
     cmd->add_option("--seed", a->o.seed, "Random seed of the ray batches (1)");
     cmd->add_option("--threads", a->o.threads, "Threads (0: all cores)");
-    cmd->add_option("--prune", a->o.prune,
-                    "Density below this optical depth per voxel is set to 0 (1e-4; 0: no pruning)");
+    cmd->add_option(
+        "--prune", a->o.prune,
+        "Every 50 iterations, prune 4^3-cell blocks whose density lies below this optical depth per voxel "
+        "(1e-2; 0: no pruning)");
     cmd->add_flag("!--no-skip-empty", a->o.skip_empty,
-                  "Do not skip empty macrocells while training (exact gradients everywhere)");
+                  "March through the pruned blocks instead of skipping them (same result, slower)");
     cmd->add_option("--eval-every", a->eval_every,
                     "Held-out PSNR every N iterations (default: at each grid change and at the end)");
     cmd->add_option("--checkpoint-every", a->checkpoint_every,

@@ -87,6 +87,12 @@ public:
     /// The macrocells are built from the density now: call again after
     /// changing it; `false` turns skipping off (the default: exact gradients).
     void skip_empty_density(bool on);
+    /// As skip_empty_density(true), but the macrocells skipped are those
+    /// where every node of `occupied` (the density's lattice, any type) is
+    /// exactly 0; the caller guarantees that the density is 0 there (else
+    /// the forward result changes). Built once: the density may then change
+    /// elsewhere without a rebuild (fathom::Fitter's pruning).
+    void skip_empty_where(const Volume& occupied);
     /// The fraction of macrocells skipped (0 when skipping is off).
     [[nodiscard]] double empty_fraction() const;
     /// Gradients sized for this renderer, zero.

@@ -33,7 +33,7 @@ struct FitOptions {
     double lr_density = 0.01, lr_color = 0.01;
     /// Total variation (mean over nodes of the squared differences to the
     /// next node along x, y and z), of the same scaled density and of color.
-    double tv_density = 1e-4, tv_color = 1e-4;
+    double tv_density = 3e-3, tv_color = 3e-3;
     /// What the images' transparent parts show (alpha-composited targets).
     Rgb background{1, 1, 1};
     IntegratorKind integrator = IntegratorKind::alpha;
@@ -41,13 +41,13 @@ struct FitOptions {
     double step = 0.5;
     std::uint32_t seed = 1;
     int threads = 0;
-    /// Pruning (as Plenoxels): a density node whose optical depth per voxel
-    /// falls below `prune` after a step is set to exactly 0; with
-    /// `skip_empty`, the macrocells whose density nodes are all 0 are skipped
-    /// by both passes from then on (DiffRenderer::skip_empty_density: no
-    /// gradient inside them, so they stay empty unless they regrow from
-    /// their border). Off: prune = 0, skip_empty = false.
-    double prune = 1e-4;
+    /// Pruning (as Plenoxels' occupancy grid): every 50 iterations, each
+    /// block of 4³ cells whose density nodes all lie below `prune` (optical
+    /// depth per voxel) is set to exactly 0 (its Adam moments too) and
+    /// frozen there for the rest of the grid level; with `skip_empty`, both
+    /// passes skip the pruned blocks (DiffRenderer::skip_empty_where: exact,
+    /// since they are 0). Off: prune = 0.
+    double prune = 1e-2;
     bool skip_empty = true;
 
     /// Throws Error("fit options", ...) on out-of-range values.
@@ -60,6 +60,7 @@ struct FitStats {
     double loss = 0;    // the batch's MSE (per channel) plus the TV terms
     double psnr = 0;    // of the batch's MSE alone
     double rays_per_second = 0;
+    double empty = 0;  // fraction of the density's macrocells skipped as empty (0 without skip_empty)
 };
 
 class Fitter {

@@ -821,14 +821,27 @@ DiffRenderer::DiffRenderer(DiffRenderer&&) noexcept = default;
 DiffRenderer& DiffRenderer::operator=(DiffRenderer&&) noexcept = default;
 
 void DiffRenderer::skip_empty_density(bool on) {
+    if (!on) {
+        impl_->skip = false;
+        impl_->base.empty_space = {};
+        return;
+    }
     if (impl_->density == nullptr)
         throw Error("differentiable rendering", "skipping empty density needs pre-classified grids");
+    skip_empty_where(*impl_->density);
+}
+
+void DiffRenderer::skip_empty_where(const Volume& occupied) {
+    if (impl_->density == nullptr)
+        throw Error("differentiable rendering", "skipping empty density needs pre-classified grids");
+    if (occupied.dims() != impl_->density->dims() || occupied.components() != 1)
+        throw Error("differentiable rendering",
+                    "the occupancy grid must be the density's lattice, one component");
     impl_->skip = false;
     impl_->base.empty_space = {};
-    if (!on) return;
     const IntegratorKind k = impl_->base.s.integrator;
     const int shift = k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;  // as Renderer
-    impl_->base.empty_space = EmptySpace::for_density(*impl_->density, shift, impl_->base.s.threads);
+    impl_->base.empty_space = EmptySpace::for_density(occupied, shift, impl_->base.s.threads);
     impl_->skip = impl_->base.empty_space.any();
 }
 

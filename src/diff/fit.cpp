@@ -144,8 +144,70 @@ struct Fitter::Impl {
         v_c = make_grid(o, n, 3);
         adam_t = 0;
         renderer = std::make_unique<DiffRenderer>(density, color, settings(1, 1));
-        if (o.skip_empty) renderer->skip_empty_density(true);
         g = renderer->make_gradients();
+        const auto nb = block_dims();
+        pruned.assign(static_cast<std::size_t>(nb[0] * nb[1] * nb[2]), 0);
+        occupied = Volume(density.dims(), DType::u8);
+        apply_pruned();
+    }
+
+    /// Pruning (FitOptions::prune): blocks of kBlock³ cells (the alpha
+    /// integrator's macrocells) are pruned when all their density nodes lie
+    /// below o.prune; a pruned block's nodes are 0 and frozen (no steps)
+    /// for the rest of the level, so the renderer skips it without a rebuild
+    /// after each step and stays exact.
+    static constexpr int kPruneEvery = 50, kBlock = 4;
+    std::vector<std::uint8_t> pruned;  // per block
+    Volume occupied;                   // u8 per node: 0 where a pruned block has it (frozen at 0)
+
+    [[nodiscard]] std::array<std::int64_t, 3> block_dims() const {
+        std::array<std::int64_t, 3> nb{};
+        for (int a = 0; a < 3; ++a) nb[a] = (density.dims()[a] - 2) / kBlock + 1;  // cells 0..d−2
+        return nb;
+    }
+    /// Calls f(node) for the nodes of block b (its boundary included) while f returns true.
+    template <class F>
+    bool for_block_nodes(std::size_t b, F&& f) const {
+        const auto& d = density.dims();
+        const auto nb = block_dims();
+        const std::array<std::int64_t, 3> bi{static_cast<std::int64_t>(b) % nb[0],
+                                             static_cast<std::int64_t>(b) / nb[0] % nb[1],
+                                             static_cast<std::int64_t>(b) / (nb[0] * nb[1])};
+        std::array<std::int64_t, 3> lo{}, hi{};
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = bi[a] * kBlock;
+            hi[a] = std::min<std::int64_t>(lo[a] + kBlock, d[a] - 1);
+        }
+        for (std::int64_t k = lo[2]; k <= hi[2]; ++k)
+            for (std::int64_t j = lo[1]; j <= hi[1]; ++j)
+                for (std::int64_t i = lo[0]; i <= hi[0]; ++i)
+                    if (!f(static_cast<std::size_t>(i + d[0] * (j + d[1] * k)))) return false;
+        return true;
+    }
+    /// The occupancy grid of the pruned blocks, and the renderer skipping them.
+    void apply_pruned() {
+        std::uint8_t* occ = occupied.data<std::uint8_t>();
+        std::fill(occ, occ + occupied.num_nodes(), std::uint8_t{1});
+        for (std::size_t b = 0; b < pruned.size(); ++b)
+            if (pruned[b]) for_block_nodes(b, [&](std::size_t n) { return (occ[n] = 0) == 0; });
+        if (o.skip_empty) renderer->skip_empty_where(occupied);
+    }
+    /// Prunes the blocks whose density nodes all lie below o.prune (optical
+    /// depth per voxel), decided before any is cleared; their moments too.
+    void prune_blocks() {
+        const double limit = o.prune / spacing();
+        float* x = density.data<float>();
+        float* md = m_d.data<float>();
+        float* vd = v_d.data<float>();
+        std::vector<std::size_t> low;
+        for (std::size_t b = 0; b < pruned.size(); ++b)
+            if (!pruned[b] && for_block_nodes(b, [&](std::size_t n) { return x[n] < limit; }))
+                low.push_back(b);
+        for (const std::size_t b : low) {
+            pruned[b] = 1;
+            for_block_nodes(b, [&](std::size_t n) { return (x[n] = md[n] = vd[n] = 0.0f) == 0.0f; });
+        }
+        apply_pruned();
     }
 
     /// The level the schedule puts iteration i on: equal shares of the iterations.
@@ -186,6 +248,7 @@ struct Fitter::Impl {
         // no ray constrains.) Node ranges over the threads: gradients first
         // (TV reads the values before any update), then steps.
         const int nt = fit::thread_count(o.threads);
+        const std::uint8_t* occ = occupied.data<std::uint8_t>();
         touched.resize(static_cast<std::size_t>(nt));
         std::vector<double> tv(static_cast<std::size_t>(nt), 0.0);
         fit::parallel_blocks(g.density.size(), nt, [&](std::size_t b, std::size_t e, int t) {
@@ -196,6 +259,10 @@ struct Fitter::Impl {
                 if (g.density[n] == 0.0 && g.color[3 * n] == 0.0 && g.color[3 * n + 1] == 0.0 &&
                     g.color[3 * n + 2] == 0.0)
                     continue;
+                if (occ[n] == 0) {  // pruned: frozen at 0 (a border node of a skipped macrocell)
+                    g.density[n] = g.color[3 * n] = g.color[3 * n + 1] = g.color[3 * n + 2] = 0.0;
+                    continue;
+                }
                 mine.push_back(n);
                 double gd = g.density[n] / s;
                 share += tv_at(density, static_cast<std::int64_t>(n), 0, s, o.tv_density, gd);
@@ -214,7 +281,6 @@ struct Fitter::Impl {
             for (std::size_t t = b; t < e; ++t)
                 for (const std::size_t n : touched[t]) {
                     step_d(xd[n], md[n], vd[n], g.density[n], s, 0.0, INFINITY);
-                    if (xd[n] * s < o.prune) xd[n] = 0.0f;  // pruned: exactly empty
                     for (std::size_t c = 0; c < 3; ++c)
                         step_c(xc[3 * n + c], mc[3 * n + c], vc[3 * n + c], g.color[3 * n + c], 1.0, 0.0,
                                1.0);
@@ -222,11 +288,15 @@ struct Fitter::Impl {
                     for (std::size_t c = 0; c < 3; ++c) g.color[3 * n + c] = 0.0;
                 }
         });
-        if (o.skip_empty) renderer->skip_empty_density(true);  // the macrocells of the new density
         ++iteration;
+        if (o.prune > 0 && iteration % kPruneEvery == 0) prune_blocks();
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        return {iteration, levels[static_cast<std::size_t>(level)], loss, fit::psnr_of(mse),
-                static_cast<double>(B) / std::max(secs, 1e-9)};
+        return {iteration,
+                levels[static_cast<std::size_t>(level)],
+                loss,
+                fit::psnr_of(mse),
+                static_cast<double>(B) / std::max(secs, 1e-9),
+                o.skip_empty ? renderer->empty_fraction() : 0.0};
     }
 };
 
@@ -285,6 +355,9 @@ void Fitter::save_checkpoint(const fs::path& dir) const {
     write_nrrd(dir / "adam_v_color.nrrd", im.v_c, false);
     std::ostringstream rng;
     rng << im.rng;
+    std::vector<std::size_t> pruned_list;
+    for (std::size_t b = 0; b < im.pruned.size(); ++b)
+        if (im.pruned[b]) pruned_list.push_back(b);
     const nlohmann::json j{{"format", "fathom-fit-checkpoint/1"},
                            {"iteration", im.iteration},
                            {"level", im.level},
@@ -293,7 +366,8 @@ void Fitter::save_checkpoint(const fs::path& dir) const {
                            {"grid", im.o.grid},
                            {"start_grid", im.o.start_grid},
                            {"batch", im.o.batch},
-                           {"seed", im.o.seed}};
+                           {"seed", im.o.seed},
+                           {"pruned_blocks", pruned_list}};
     write_text_file(dir / "state.json", j.dump(2) + "\n");  // last: a complete checkpoint has it
 }
 
@@ -304,6 +378,7 @@ Fitter Fitter::resume(const ViewSet& train, FitOptions options, const fs::path& 
     const std::string subject = state.string();
     nlohmann::json j;
     long adam_t = 0;
+    std::vector<std::size_t> pruned_list;
     try {
         std::ifstream in(state);
         if (!in) throw Error(subject, "no checkpoint here (state.json is missing)");
@@ -319,6 +394,7 @@ Fitter Fitter::resume(const ViewSet& train, FitOptions options, const fs::path& 
         std::istringstream rng(j.at("rng").get<std::string>());
         rng >> im.rng;
         if (!rng) throw Error(subject, "the random state does not read");
+        if (j.contains("pruned_blocks")) pruned_list = j.at("pruned_blocks").get<std::vector<std::size_t>>();
     } catch (const nlohmann::json::exception& e) {
         throw Error(subject, std::string("broken checkpoint: ") + e.what());
     }
@@ -341,7 +417,11 @@ Fitter Fitter::resume(const ViewSet& train, FitOptions options, const fs::path& 
     load("adam_m_color.nrrd", im.m_c);
     load("adam_v_color.nrrd", im.v_c);
     im.renderer = std::make_unique<DiffRenderer>(im.density, im.color, im.settings(1, 1));
-    if (options.skip_empty) im.renderer->skip_empty_density(true);
+    for (const std::size_t b : pruned_list) {
+        if (b >= im.pruned.size()) throw Error(subject, "a pruned block lies outside the grid");
+        im.pruned[b] = 1;
+    }
+    im.apply_pruned();
     return f;
 }
 
