@@ -201,9 +201,10 @@ TEST(EmptySpace, PreclassifiedGridImagesAreBitIdentical) {
         }
 }
 
-// A small blob in a large box: whole coarse cells (4³ macrocells) are empty
-// and rays cross them in one step; images stay bit-identical.
-TEST(EmptySpace, CoarseCellsSkipLargeEmptyRegionsExactly) {
+// A small blob in a large box: far from it, a ray crosses a whole box of
+// empty macrocells (the distance to the blob) in one step; images stay
+// bit-identical.
+TEST(EmptySpace, DistanceBoxesSkipLargeEmptyRegionsExactly) {
     Volume v = make_volume(83, 71, 97, [](double x, double y, double z) {
         const double d = std::sqrt((x - 60) * (x - 60) + (y - 50) * (y - 50) + (z - 70) * (z - 70));
         return std::max(0.0, 1.0 - d / 9.0);
@@ -212,8 +213,27 @@ TEST(EmptySpace, CoarseCellsSkipLargeEmptyRegionsExactly) {
     const Classifier c(blob_tf(), v.smallest_spacing());
     for (int shift : {2, 3}) {
         const EmptySpace es = EmptySpace::for_scalar(v, c, Model::emission_absorption, shift, 1);
-        EXPECT_TRUE(es.empty(es.cell({1, 1, 1}, 1), 1)) << shift;
-        EXPECT_FALSE(es.empty(es.cell({60, 50, 70}, 1), 1)) << shift;
+        EXPECT_GE(es.distance(es.macrocell({1, 1, 1})), 4) << shift;
+        EXPECT_EQ(es.distance(es.macrocell({60, 50, 70})), 0) << shift;
+        // The distance is the chessboard distance to the nearest non-empty macrocell.
+        const auto& d = es.dims();
+        std::vector<std::array<std::int64_t, 3>> full;
+        for (std::int64_t z = 0; z < d[2]; ++z)
+            for (std::int64_t y = 0; y < d[1]; ++y)
+                for (std::int64_t x = 0; x < d[0]; ++x)
+                    if (es.distance({x, y, z}) == 0) full.push_back({x, y, z});
+        ASSERT_FALSE(full.empty());
+        int wrong = 0;
+        for (std::int64_t z = 0; z < d[2]; ++z)
+            for (std::int64_t y = 0; y < d[1]; ++y)
+                for (std::int64_t x = 0; x < d[0]; ++x) {
+                    std::int64_t best = EmptySpace::kMaxDistance;
+                    for (const auto& f : full)
+                        best = std::min(
+                            best, std::max({std::abs(x - f[0]), std::abs(y - f[1]), std::abs(z - f[2])}));
+                    wrong += es.distance({x, y, z}) != best ? 1 : 0;
+                }
+        EXPECT_EQ(wrong, 0) << shift;
     }
     for (auto k : kSkipping)
         for (auto o : {Order::front_to_back, Order::back_to_front})

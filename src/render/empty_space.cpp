@@ -73,15 +73,15 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     EmptySpace es;
     es.shift_ = shift;
     es.nodes_ = v.dims();
-    es.dims_[0] = macro_dims(v, shift);
-    const auto ranges = macrocell_ranges(v, es.dims_[0], shift, resolve_threads(threads));
-    es.empty_[0].resize(ranges.size());
+    es.dims_ = macro_dims(v, shift);
+    const auto ranges = macrocell_ranges(v, es.dims_, shift, resolve_threads(threads));
+    es.dist_.resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const bool e = !ranges[i].nan && empty(ranges[i].lo, ranges[i].hi);  // NaN nodes: never empty
-        es.empty_[0][i] = e ? 1 : 0;
+        es.dist_[i] = e ? kMaxDistance : 0;
         es.any_ = es.any_ || e;
     }
-    es.build_coarse();
+    es.build_distance();
     return es;
 }
 
@@ -95,24 +95,44 @@ EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads
     return from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
 }
 
-void EmptySpace::build_coarse() {
-    const auto& f = dims_[0];
-    auto& c = dims_[1];
-    for (int a = 0; a < 3; ++a) c[a] = ((f[a] - 1) >> kCoarse) + 1;
-    empty_[1].assign(static_cast<std::size_t>(c[0] * c[1] * c[2]), 1);
-    for (std::int64_t z = 0; z < f[2]; ++z)
-        for (std::int64_t y = 0; y < f[1]; ++y)
-            for (std::int64_t x = 0; x < f[0]; ++x)
-                if (!empty_[0][static_cast<std::size_t>(x + f[0] * (y + f[1] * z))])
-                    empty_[1][static_cast<std::size_t>((x >> kCoarse) +
-                                                       c[0] * ((y >> kCoarse) + c[1] * (z >> kCoarse)))] = 0;
+// The chessboard distance transform of the non-empty macrocells: two
+// raster passes over the 26-neighbourhood (exact for this metric).
+void EmptySpace::build_distance() {
+    const auto& d = dims_;
+    auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) -> std::uint8_t& {
+        return dist_[static_cast<std::size_t>(x + d[0] * (y + d[1] * z))];
+    };
+    auto pass = [&](int s) {  // s = +1: forward (neighbours before), −1: backward
+        for (std::int64_t zi = 0; zi < d[2]; ++zi)
+            for (std::int64_t yi = 0; yi < d[1]; ++yi)
+                for (std::int64_t xi = 0; xi < d[0]; ++xi) {
+                    const std::int64_t z = s > 0 ? zi : d[2] - 1 - zi, y = s > 0 ? yi : d[1] - 1 - yi,
+                                       x = s > 0 ? xi : d[0] - 1 - xi;
+                    std::uint8_t& v = at(x, y, z);
+                    if (v == 0) continue;
+                    int best = v;
+                    for (int dz = -1; dz <= 0; ++dz)
+                        for (int dy = -1; dy <= 1; ++dy)
+                            for (int dx = -1; dx <= 1; ++dx) {
+                                // the 13 neighbours that come earlier in this pass's order
+                                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
+                                const std::int64_t nx = x + s * dx, ny = y + s * dy, nz = z + s * dz;
+                                if (nx < 0 || ny < 0 || nz < 0 || nx >= d[0] || ny >= d[1] || nz >= d[2])
+                                    continue;
+                                best = std::min(best, at(nx, ny, nz) + 1);
+                            }
+                    v = static_cast<std::uint8_t>(best);
+                }
+    };
+    pass(+1);
+    pass(-1);
 }
 
 double EmptySpace::empty_fraction() const {
-    if (empty_[0].empty()) return 0.0;
+    if (dist_.empty()) return 0.0;
     std::size_t n = 0;
-    for (auto e : empty_[0]) n += e;
-    return static_cast<double>(n) / static_cast<double>(empty_[0].size());
+    for (auto e : dist_) n += e != 0 ? 1 : 0;
+    return static_cast<double>(n) / static_cast<double>(dist_.size());
 }
 
 }  // namespace fathom

@@ -62,36 +62,52 @@ public:
     [[nodiscard]] bool any() const { return any_; }
     [[nodiscard]] double empty_fraction() const;
 
-    /// Macrocells are grouped 4³ into coarse cells, empty when all of theirs
-    /// are: a ray crosses large empty regions in few steps.
-    static constexpr int kCoarse = 2;
+    /// Chebyshev distance, in macrocells, from macrocell m to the nearest
+    /// non-empty one (0: m is not empty; capped at 255): every macrocell
+    /// within distance − 1 of m is empty, so a ray crosses that box of
+    /// macrocells in one step.
+    static constexpr int kMaxDistance = 255;
+    /// Macrocells per axis.
+    [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
 
-    /// The macrocell (level 0) or coarse cell (level 1) of a position, the
-    /// cell chosen as GridSampler picks it.
-    [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> cell(const Vec3& p, int level) const {
-        const int sh = shift_ + level * kCoarse;
-        return {axis_cell(p.x, 0) >> sh, axis_cell(p.y, 1) >> sh, axis_cell(p.z, 2) >> sh};
-    }
+    /// The macrocell of a position, the cell chosen as GridSampler picks it.
     [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
-        return cell(p, 0);
+        return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
     }
-    [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m, int level = 0) const {
-        const auto& d = dims_[level];
-        return empty_[level][static_cast<std::size_t>(m[0] + d[0] * (m[1] + d[1] * m[2]))] != 0;
+    [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m) const {
+        return distance(m) != 0;
+    }
+    [[nodiscard]] FATHOM_INLINE int distance(const std::array<std::int64_t, 3>& m) const {
+        return dist_[static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]))];
+    }
+
+    /// The box of macrocells within Chebyshev distance r of m, clipped to the grid.
+    struct Box {
+        std::array<std::int64_t, 3> lo, hi;  // macrocell indices, inclusive
+        [[nodiscard]] FATHOM_INLINE bool contains(const std::array<std::int64_t, 3>& c) const {
+            return c[0] >= lo[0] && c[0] <= hi[0] && c[1] >= lo[1] && c[1] <= hi[1] && c[2] >= lo[2] &&
+                   c[2] <= hi[2];
+        }
+    };
+    [[nodiscard]] FATHOM_INLINE Box box(const std::array<std::int64_t, 3>& m, std::int64_t r) const {
+        Box b;
+        for (int a = 0; a < 3; ++a) {
+            b.lo[a] = std::max<std::int64_t>(m[a] - r, 0);
+            b.hi[a] = std::min<std::int64_t>(m[a] + r, dims_[a] - 1);
+        }
+        return b;
     }
 
     /// The ray parameter where the ray leaves (dir = +1) or enters
-    /// (dir = −1) cell m's box at `level`; inv_dp = 1/dp per axis (an
-    /// estimate: callers verify on computed positions).
-    [[nodiscard]] FATHOM_INLINE double box_exit(const RaySpan& sp, const Vec3& inv_dp,
-                                                const std::array<std::int64_t, 3>& m, int dir,
-                                                int level) const {
-        const int sh = shift_ + level * kCoarse;
+    /// (dir = −1) box b; inv_dp = 1/dp per axis (an estimate: callers
+    /// verify on computed positions).
+    [[nodiscard]] FATHOM_INLINE double box_exit(const RaySpan& sp, const Vec3& inv_dp, const Box& b,
+                                                int dir) const {
         double t = dir > 0 ? INFINITY : -INFINITY;
         for (int a = 0; a < 3; ++a) {
             if (sp.dp[a] == 0.0) continue;
-            const double lo = static_cast<double>(m[a] << sh);
-            const double hi = static_cast<double>(std::min((m[a] + 1) << sh, nodes_[a] - 1));
+            const double lo = static_cast<double>(b.lo[a] << shift_);
+            const double hi = static_cast<double>(std::min((b.hi[a] + 1) << shift_, nodes_[a] - 1));
             const bool up = (sp.dp[a] > 0.0) == (dir > 0);
             const double ta = ((up ? hi : lo) - sp.p0[a]) * inv_dp[a];
             t = dir > 0 ? std::min(t, ta) : std::max(t, ta);
@@ -103,7 +119,7 @@ private:
     /// Macrocells whose node range [lo, hi] satisfies empty(lo, hi) are empty.
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
-    void build_coarse();
+    void build_distance();
     [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
         const double x = std::clamp(p, 0.0, static_cast<double>(nodes_[a] - 1));
         return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
@@ -111,8 +127,8 @@ private:
 
     int shift_ = 3;
     std::array<std::int64_t, 3> nodes_{};
-    std::array<std::int64_t, 3> dims_[2]{};  // macrocells, coarse cells
-    std::vector<std::uint8_t> empty_[2];     // per level
+    std::array<std::int64_t, 3> dims_{};  // macrocells per axis
+    std::vector<std::uint8_t> dist_;      // per macrocell: distance (above); 0: not empty
     bool any_ = false;
 };
 
@@ -149,20 +165,17 @@ public:
           inv_delta_(1.0 / grid.delta) {}
 
     Run run(std::int64_t j, int dir, std::int64_t limit) const {
-        const Vec3 pj = g_.at(j);
-        const auto m = es_.macrocell(pj);
-        if (!es_.empty(m)) return {last_in(m, 0, j, dir, limit), false};
-        const auto c = es_.cell(pj, 1);
-        if (es_.empty(c, 1)) return {last_in(c, 1, j, dir, limit), true};
-        return {last_in(m, 0, j, dir, limit), true};
+        const auto m = es_.macrocell(g_.at(j));
+        const int d = es_.distance(m);
+        return {last_in(es_.box(m, d == 0 ? 0 : d - 1), j, dir, limit), d != 0};
     }
 
 private:
-    // The farthest index from j towards limit whose position is in cell m
-    // at `level` (sample j is in it).
-    [[nodiscard]] FATHOM_INLINE std::int64_t last_in(const std::array<std::int64_t, 3>& m, int level,
-                                                     std::int64_t j, int dir, std::int64_t limit) const {
-        const double tb = es_.box_exit(*g_.span, inv_dp_, m, dir, level);
+    // The farthest index from j towards limit whose position is in box b
+    // (sample j is in it).
+    [[nodiscard]] FATHOM_INLINE std::int64_t last_in(const EmptySpace::Box& b, std::int64_t j, int dir,
+                                                     std::int64_t limit) const {
+        const double tb = es_.box_exit(*g_.span, inv_dp_, b, dir);
         // the fractional index of the box exit (inverse of SampleGrid::t)
         double x = (tb - g_.span->t_near) * inv_delta_ - g_.offset + static_cast<double>(g_.first);
         std::int64_t k = limit;
@@ -173,7 +186,7 @@ private:
             k = static_cast<std::int64_t>(std::clamp(x, lo, hi));
         }
         // Verify on the computed positions (rounding can move the last one out).
-        while (k != j && es_.cell(g_.at(k), level) != m) k -= dir;
+        while (k != j && !b.contains(es_.macrocell(g_.at(k)))) k -= dir;
         return k;
     }
 
