@@ -117,27 +117,34 @@ struct MacrocellRuns {
     }
 };
 
-template <class Seg, class Runs>
-RayResult march_forward(std::int64_t n, double termination, const Rgb& bg, Seg& seg, const Runs& runs) {
-    RayResult r;
-    double T = 1.0;
+/// Calls f(i) for each segment 1..n outside the empty runs, in order, until f
+/// returns false (early termination). Returns false when f stopped it.
+template <class Runs, class F>
+bool for_each_evaluated(std::int64_t n, const Runs& runs, F&& f) {
     for (std::int64_t i = 1; i <= n;) {
         const RunState run = runs(i);
         if (run.empty) {
             i = run.last + 1;
             continue;
         }
-        for (; i <= run.last; ++i) {
-            const SegmentValue s = seg.value(i);
-            for (int c = 0; c < 3; ++c) r.radiance[c] += T * s.C[c];
-            T *= s.t;
-            if (T < termination) {
-                r.alpha = 1.0 - T;
-                return r;
-            }
-        }
+        for (; i <= run.last; ++i)
+            if (!f(i)) return false;
     }
-    for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
+    return true;
+}
+
+template <class Seg, class Runs>
+RayResult march_forward(std::int64_t n, double termination, const Rgb& bg, Seg& seg, const Runs& runs) {
+    RayResult r;
+    double T = 1.0;
+    const bool reached_end = for_each_evaluated(n, runs, [&](std::int64_t i) {
+        const SegmentValue s = seg.value(i);
+        for (int c = 0; c < 3; ++c) r.radiance[c] += T * s.C[c];
+        T *= s.t;
+        return !(T < termination);
+    });
+    if (reached_end)
+        for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
     r.alpha = 1.0 - T;
     return r;
 }
@@ -149,25 +156,18 @@ void march_backward(std::int64_t n, double termination, const RayResult& fwd, co
     const double T_final = 1.0 - fwd.alpha;
     double T = 1.0;
     Rgb acc{0, 0, 0};  // I_{≤i}
-    for (std::int64_t i = 1; i <= n;) {
-        const RunState run = runs(i);
-        if (run.empty) {
-            i = run.last + 1;
-            continue;
+    for_each_evaluated(n, runs, [&](std::int64_t i) {
+        const SegmentValue s = seg.value(i);
+        SegmentAdjoint a{adj.alpha * T_final, {}};
+        for (int c = 0; c < 3; ++c) {
+            a.radiance[c] = adj.radiance[c] * T;
+            acc[c] += T * s.C[c];
+            a.tau -= adj.radiance[c] * (fwd.radiance[c] - acc[c]);
         }
-        for (; i <= run.last; ++i) {
-            const SegmentValue s = seg.value(i);
-            SegmentAdjoint a{adj.alpha * T_final, {}};
-            for (int c = 0; c < 3; ++c) {
-                a.radiance[c] = adj.radiance[c] * T;
-                acc[c] += T * s.C[c];
-                a.tau -= adj.radiance[c] * (fwd.radiance[c] - acc[c]);
-            }
-            seg.grad(i, a);
-            T *= s.t;
-            if (T < termination) return;
-        }
-    }
+        seg.grad(i, a);
+        T *= s.t;
+        return !(T < termination);
+    });
 }
 
 // ---------------------------------------------------------------- media ---

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <type_traits>
 
 #include <nlohmann/json.hpp>
 
@@ -159,13 +160,15 @@ struct Fitter::Impl {
     static constexpr int kPruneEvery = 50, kBlock = 4;
     std::vector<std::uint8_t> pruned;  // per block
     Volume occupied;                   // u8 per node: 0 where a pruned block has it (frozen at 0)
+    double skipped = 0;                // the renderer's fraction of macrocells skipped
 
     [[nodiscard]] std::array<std::int64_t, 3> block_dims() const {
         std::array<std::int64_t, 3> nb{};
         for (int a = 0; a < 3; ++a) nb[a] = (density.dims()[a] - 2) / kBlock + 1;  // cells 0..d−2
         return nb;
     }
-    /// Calls f(node) for the nodes of block b (its boundary included) while f returns true.
+    /// Calls f(node) for the nodes of block b (its boundary included); a
+    /// predicate f stops it at the first false (and the result says so).
     template <class F>
     bool for_block_nodes(std::size_t b, F&& f) const {
         const auto& d = density.dims();
@@ -181,7 +184,10 @@ struct Fitter::Impl {
         for (std::int64_t k = lo[2]; k <= hi[2]; ++k)
             for (std::int64_t j = lo[1]; j <= hi[1]; ++j)
                 for (std::int64_t i = lo[0]; i <= hi[0]; ++i)
-                    if (!f(static_cast<std::size_t>(i + d[0] * (j + d[1] * k)))) return false;
+                    if constexpr (std::is_void_v<std::invoke_result_t<F&, std::size_t>>)
+                        f(static_cast<std::size_t>(i + d[0] * (j + d[1] * k)));
+                    else if (!f(static_cast<std::size_t>(i + d[0] * (j + d[1] * k))))
+                        return false;
         return true;
     }
     /// The occupancy grid of the pruned blocks, and the renderer skipping them.
@@ -189,8 +195,9 @@ struct Fitter::Impl {
         std::uint8_t* occ = occupied.data<std::uint8_t>();
         std::fill(occ, occ + occupied.num_nodes(), std::uint8_t{1});
         for (std::size_t b = 0; b < pruned.size(); ++b)
-            if (pruned[b]) for_block_nodes(b, [&](std::size_t n) { return (occ[n] = 0) == 0; });
+            if (pruned[b]) for_block_nodes(b, [&](std::size_t n) { occ[n] = 0; });
         if (o.skip_empty) renderer->skip_empty_where(occupied);
+        skipped = o.skip_empty ? renderer->empty_fraction() : 0.0;
     }
     /// Prunes the blocks whose density nodes all lie below o.prune (optical
     /// depth per voxel), decided before any is cleared; their moments too.
@@ -205,7 +212,7 @@ struct Fitter::Impl {
                 low.push_back(b);
         for (const std::size_t b : low) {
             pruned[b] = 1;
-            for_block_nodes(b, [&](std::size_t n) { return (x[n] = md[n] = vd[n] = 0.0f) == 0.0f; });
+            for_block_nodes(b, [&](std::size_t n) { x[n] = md[n] = vd[n] = 0.0f; });
         }
         apply_pruned();
     }
@@ -291,12 +298,8 @@ struct Fitter::Impl {
         ++iteration;
         if (o.prune > 0 && iteration % kPruneEvery == 0) prune_blocks();
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        return {iteration,
-                levels[static_cast<std::size_t>(level)],
-                loss,
-                fit::psnr_of(mse),
-                static_cast<double>(B) / std::max(secs, 1e-9),
-                o.skip_empty ? renderer->empty_fraction() : 0.0};
+        return {iteration,         levels[static_cast<std::size_t>(level)],       loss,
+                fit::psnr_of(mse), static_cast<double>(B) / std::max(secs, 1e-9), skipped};
     }
 };
 
