@@ -228,6 +228,32 @@ TEST(Fit, OptionsAreChecked) {
     o = small_options();
     o.integrator = IntegratorKind::reference;
     test::expect_error([&] { Fitter(train, o); }, "fit options", {"not differentiable"});
+    o = small_options();
+    o.level_iterations = {300};  // leaves nothing for the last grid
+    test::expect_error([&] { Fitter(train, o); }, "fit options", {"leave iterations"});
+    o.level_iterations = {10, 10};  // 7 → 14: one grid before the last
+    test::expect_error([&] { Fitter(train, o); }, "fit options", {"only 1 come before"});
+    o.level_iterations = {0};
+    test::expect_error([&] { Fitter(train, o); }, "fit options", {"≥ 1"});
+}
+
+TEST(Fit, LevelIterationsSetTheSchedule) {
+    const Truth t = make_truth();
+    const ViewSet train = render_views(t, 2, 8, 0.0);
+    FitOptions o = small_options();
+    o.start_grid = 4;  // 4 → 8 → 14
+    o.iterations = 12;
+    o.batch = 16;
+    o.level_iterations = {3};  // 3 on 4³, 3 on 8³ (the entry repeats), 6 on 14³
+    Fitter f(train, o);
+    std::vector<int> grids;
+    while (!f.done()) grids.push_back(f.step().grid);
+    EXPECT_EQ(grids, (std::vector<int>{4, 4, 4, 8, 8, 8, 14, 14, 14, 14, 14, 14}));
+    o.level_iterations = {2, 7};
+    Fitter g(train, o);
+    grids.clear();
+    while (!g.done()) grids.push_back(g.step().grid);
+    EXPECT_EQ(grids, (std::vector<int>{4, 4, 8, 8, 8, 8, 8, 8, 8, 14, 14, 14}));
 }
 
 TEST(ViewSets, ViewsCommandWritesWhatTheReaderReads) {

@@ -135,10 +135,16 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--grid", a->o.grid, "Final nodes along the longest side (default 128)");
     cmd->add_option("--start-grid", a->o.start_grid, "First grid; doubles up to --grid (default 32)");
     cmd->add_option("--iterations", a->o.iterations, "Iterations (ray batches) in all (default 2000)");
+    cmd->add_option("--level-iterations", a->o.level_iterations,
+                    "Iterations on each grid before the last, e.g. 500,1000 (default: equal shares)")
+        ->delimiter(',');
     cmd->add_option("--batch", a->o.batch, "Rays per iteration (default 4096)");
     cmd->add_option("--lr-density", a->o.lr_density,
                     "Adam step of the density, optical depth per voxel (0.01)");
     cmd->add_option("--lr-color", a->o.lr_color, "Adam step of the color (0.01)");
+    cmd->add_option(
+        "--lr-final", a->o.lr_final,
+        "Step sizes decay exponentially over each grid to this fraction at its end (1: constant)");
     cmd->add_option("--tv-density", a->o.tv_density, "Total-variation weight of the density (3e-3)");
     cmd->add_option("--tv-color", a->o.tv_color, "Total-variation weight of the color (3e-3)");
     cmd->add_option("--background", a->background,

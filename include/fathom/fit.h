@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <vector>
 
 #include "fathom/math.h"
 #include "fathom/render.h"
@@ -24,6 +25,11 @@ struct FitOptions {
     int grid = 128;
     int start_grid = 32;
     int iterations = 2000;
+    /// Iterations on each grid before the last (the last entry repeats for
+    /// any further ones; the last grid runs the rest); empty: each grid an
+    /// equal share of `iterations`. A coarse grid stops improving long
+    /// before a fine one does.
+    std::vector<int> level_iterations;
     /// Rays per iteration (random views and pixels).
     int batch = 4096;
     /// Adam step sizes on the first grid, halved with each doubling: density
@@ -31,6 +37,9 @@ struct FitOptions {
     /// color units. Updates are sparse: only the nodes a batch's rays reach
     /// get a total-variation gradient and an Adam step.
     double lr_density = 0.01, lr_color = 0.01;
+    /// The step sizes decay exponentially over each grid level to this
+    /// fraction of their value at its last iteration (1: constant).
+    double lr_final = 1.0;
     /// Total variation (mean over nodes of the squared differences to the
     /// next node along x, y and z), of the same scaled density and of color.
     double tv_density = 3e-3, tv_color = 3e-3;

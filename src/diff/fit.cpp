@@ -7,6 +7,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <string>
 #include <type_traits>
 
 #include <nlohmann/json.hpp>
@@ -39,6 +40,21 @@ void FitOptions::validate() const {
     if (integrator == IntegratorKind::reference) fail("the reference integrator is not differentiable");
     if (threads < 0) fail("threads must be ≥ 0");
     if (!(prune >= 0) || !std::isfinite(prune)) fail("prune must be ≥ 0");
+    if (!(lr_final > 0) || lr_final > 1) fail("lr_final must be in (0, 1]");
+    int coarse_levels = 0;  // grids before the last
+    for (int n = start_grid; n < grid; n *= 2) ++coarse_levels;
+    if (static_cast<int>(level_iterations.size()) > coarse_levels)
+        fail("level iterations name " + std::to_string(level_iterations.size()) + " grids, but only " +
+             std::to_string(coarse_levels) + " come before the last");
+    long coarse = 0;
+    for (const int n : level_iterations) {
+        if (n < 1) fail("level iterations must be ≥ 1");
+        coarse += n;
+    }
+    if (!level_iterations.empty())
+        coarse += static_cast<long>(coarse_levels - static_cast<int>(level_iterations.size())) *
+                  level_iterations.back();
+    if (coarse >= iterations) fail("the grids before the last must leave iterations for the last");
 }
 
 namespace {
@@ -217,10 +233,25 @@ struct Fitter::Impl {
         apply_pruned();
     }
 
-    /// The level the schedule puts iteration i on: equal shares of the iterations.
+    /// The first iteration of level l (l = levels: o.iterations):
+    /// o.level_iterations on each level before the last, or equal shares.
+    [[nodiscard]] long level_begin(long l) const {
+        const auto L = static_cast<long>(levels.size());
+        if (l >= L) return o.iterations;
+        if (o.level_iterations.empty()) return (l * o.iterations + L - 1) / L;  // ⌈l·N/L⌉
+        long begin = 0;
+        for (long k = 0; k < l; ++k)
+            begin += k < static_cast<long>(o.level_iterations.size())
+                         ? o.level_iterations[static_cast<std::size_t>(k)]
+                         : o.level_iterations.back();
+        return begin;
+    }
+    /// The level the schedule puts iteration i on.
     [[nodiscard]] int level_at(int i) const {
         const auto L = static_cast<long>(levels.size());
-        return static_cast<int>(std::min<long>(L - 1, static_cast<long>(i) * L / o.iterations));
+        long l = 0;
+        while (l + 1 < L && i >= level_begin(l + 1)) ++l;
+        return static_cast<int>(l);
     }
 
     FitStats step() {
@@ -239,7 +270,13 @@ struct Fitter::Impl {
         const double s = spacing();
         // The step sizes hold for the first grid and halve with each doubling:
         // a voxel's optical depth halves, and fewer rays reach each node.
-        const double lr_scale = static_cast<double>(o.start_grid) / levels[static_cast<std::size_t>(level)];
+        double lr_scale = static_cast<double>(o.start_grid) / levels[static_cast<std::size_t>(level)];
+        if (o.lr_final != 1.0) {  // exponential decay over the level, to lr_final at its end
+            const double b = static_cast<double>(level_begin(level)),
+                         e = static_cast<double>(level_begin(level + 1));
+            lr_scale *=
+                std::pow(o.lr_final, std::clamp((iteration - b) / std::max(1.0, e - 1 - b), 0.0, 1.0));
+        }
         ++adam_t;
         const fit::AdamStep step_d(o.lr_density * lr_scale, adam_t), step_c(o.lr_color * lr_scale, adam_t);
         float* xd = density.data<float>();
