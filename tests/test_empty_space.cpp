@@ -215,24 +215,31 @@ TEST(EmptySpace, DistanceBoxesSkipLargeEmptyRegionsExactly) {
         const EmptySpace es = EmptySpace::for_scalar(v, c, Model::emission_absorption, shift, 1);
         EXPECT_GE(es.distance(es.macrocell({1, 1, 1})), 4) << shift;
         EXPECT_EQ(es.distance(es.macrocell({60, 50, 70})), 0) << shift;
-        // The distance is the chessboard distance to the nearest non-empty macrocell.
+        // The distance is the chessboard distance to the nearest non-empty
+        // macrocell; for a non-empty one, minus that to the nearest empty one.
         const auto& d = es.dims();
-        std::vector<std::array<std::int64_t, 3>> full;
+        std::vector<std::array<std::int64_t, 3>> full, empty;
         for (std::int64_t z = 0; z < d[2]; ++z)
             for (std::int64_t y = 0; y < d[1]; ++y)
                 for (std::int64_t x = 0; x < d[0]; ++x)
-                    if (es.distance({x, y, z}) == 0) full.push_back({x, y, z});
+                    (es.distance({x, y, z}) == 0 ? full : empty).push_back({x, y, z});
         ASSERT_FALSE(full.empty());
-        int wrong = 0;
+        ASSERT_FALSE(empty.empty());
+        int wrong = 0, deep = 0;
         for (std::int64_t z = 0; z < d[2]; ++z)
             for (std::int64_t y = 0; y < d[1]; ++y)
                 for (std::int64_t x = 0; x < d[0]; ++x) {
+                    const bool is_empty = es.empty({x, y, z});
                     std::int64_t best = EmptySpace::kMaxDistance;
-                    for (const auto& f : full)
+                    for (const auto& f : is_empty ? full : empty)
                         best = std::min(
                             best, std::max({std::abs(x - f[0]), std::abs(y - f[1]), std::abs(z - f[2])}));
-                    wrong += es.distance({x, y, z}) != best ? 1 : 0;
+                    wrong += es.signed_distance({x, y, z}) != (is_empty ? best : -best) ? 1 : 0;
+                    deep += !is_empty && best >= 2 ? 1 : 0;
                 }
+        if (shift == 2) {
+            EXPECT_GT(deep, 0);  // the blob's inside is a box of non-empty macrocells
+        }
         EXPECT_EQ(wrong, 0) << shift;
     }
     for (auto k : kSkipping)

@@ -235,6 +235,39 @@ TEST(Fit, OptionsAreChecked) {
     test::expect_error([&] { Fitter(train, o); }, "fit options", {"only 1 come before"});
     o.level_iterations = {0};
     test::expect_error([&] { Fitter(train, o); }, "fit options", {"≥ 1"});
+    o = small_options();
+    o.lr_final = 0;
+    test::expect_error([&] { Fitter(train, o); }, "fit options", {"lr_final"});
+}
+
+// With --lr-final the steps decay over each level: the last step of a level
+// moves the grids by about lr_final times what a constant step size moves them.
+TEST(Fit, LrFinalDecaysTheStepsOverEachLevel) {
+    const Truth t = make_truth();
+    const ViewSet train = render_views(t, 4, 12, 0.0);
+    auto last_change = [&](double lr_final) {
+        FitOptions o = small_options();
+        o.iterations = 20;
+        o.level_iterations = {10};
+        o.batch = 64;
+        o.prune = 0;
+        o.lr_final = lr_final;
+        Fitter f(train, o);
+        for (int i = 0; i < 19; ++i) f.step();
+        const Volume before = f.density();
+        f.step();
+        double most = 0;
+        const float* a = before.data<float>();
+        const float* b = f.density().data<float>();
+        for (std::int64_t n = 0; n < before.num_nodes(); ++n)
+            most = std::max(most, std::fabs(double(b[n]) - a[n]));
+        return most;
+    };
+    const double constant = last_change(1.0), decayed = last_change(1e-6);
+    std::printf("[fit] last step's largest density change: %.3g (constant), %.3g (lr_final 1e-6)\n", constant,
+                decayed);
+    EXPECT_GT(constant, 1e-4);
+    EXPECT_LT(decayed, 1e-6);
 }
 
 TEST(Fit, LevelIterationsSetTheSchedule) {

@@ -78,7 +78,7 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.dist_.resize(ranges.size());
     for (std::size_t i = 0; i < ranges.size(); ++i) {
         const bool e = !ranges[i].nan && empty(ranges[i].lo, ranges[i].hi);  // NaN nodes: never empty
-        es.dist_[i] = e ? kMaxDistance : 0;
+        es.dist_[i] = e ? 1 : -1;
         es.any_ = es.any_ || e;
     }
     es.build_distance();
@@ -95,12 +95,14 @@ EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads
     return from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
 }
 
-// The chessboard distance transform of the non-empty macrocells: two
-// raster passes over the 26-neighbourhood (exact for this metric).
-void EmptySpace::build_distance() {
-    const auto& d = dims_;
+namespace {
+
+/// The chessboard distance transform (in place, capped at the seeds' start
+/// value): cells holding 0 are the seeds; two raster passes over the
+/// 26-neighbourhood (exact for this metric).
+void chessboard_transform(std::vector<std::uint8_t>& dist, const std::array<std::int64_t, 3>& d) {
     auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) -> std::uint8_t& {
-        return dist_[static_cast<std::size_t>(x + d[0] * (y + d[1] * z))];
+        return dist[static_cast<std::size_t>(x + d[0] * (y + d[1] * z))];
     };
     auto pass = [&](int s) {  // s = +1: forward (neighbours before), −1: backward
         for (std::int64_t zi = 0; zi < d[2]; ++zi)
@@ -128,10 +130,27 @@ void EmptySpace::build_distance() {
     pass(-1);
 }
 
+}  // namespace
+
+// dist_ holds +1 (empty) or −1 (not) on entry: each kind's distance to the
+// nearest macrocell of the other kind, signed.
+void EmptySpace::build_distance() {
+    std::vector<std::uint8_t> to_full(dist_.size()), to_empty(dist_.size());
+    for (std::size_t i = 0; i < dist_.size(); ++i) {
+        to_full[i] = dist_[i] > 0 ? kMaxDistance : 0;
+        to_empty[i] = dist_[i] > 0 ? 0 : kMaxDistance;
+    }
+    chessboard_transform(to_full, dims_);
+    chessboard_transform(to_empty, dims_);
+    for (std::size_t i = 0; i < dist_.size(); ++i)
+        dist_[i] =
+            dist_[i] > 0 ? static_cast<std::int8_t>(to_full[i]) : static_cast<std::int8_t>(-to_empty[i]);
+}
+
 double EmptySpace::empty_fraction() const {
     if (dist_.empty()) return 0.0;
     std::size_t n = 0;
-    for (auto e : dist_) n += e != 0 ? 1 : 0;
+    for (auto e : dist_) n += e > 0 ? 1 : 0;
     return static_cast<double>(n) / static_cast<double>(dist_.size());
 }
 

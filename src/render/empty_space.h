@@ -63,10 +63,10 @@ public:
     [[nodiscard]] double empty_fraction() const;
 
     /// Chebyshev distance, in macrocells, from macrocell m to the nearest
-    /// non-empty one (0: m is not empty; capped at 255): every macrocell
+    /// non-empty one (0: m is not empty; capped at 127): every macrocell
     /// within distance − 1 of m is empty, so a ray crosses that box of
     /// macrocells in one step.
-    static constexpr int kMaxDistance = 255;
+    static constexpr int kMaxDistance = 127;
     /// Macrocells per axis.
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
 
@@ -75,9 +75,16 @@ public:
         return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
     }
     [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m) const {
-        return distance(m) != 0;
+        return signed_distance(m) > 0;
     }
     [[nodiscard]] FATHOM_INLINE int distance(const std::array<std::int64_t, 3>& m) const {
+        return std::max(signed_distance(m), 0);
+    }
+    /// distance(m) for an empty macrocell; for a non-empty one, minus the
+    /// Chebyshev distance to the nearest empty one (capped at 127): every
+    /// macrocell within |d| − 1 of m is non-empty (the grid's outside does
+    /// not count as empty).
+    [[nodiscard]] FATHOM_INLINE int signed_distance(const std::array<std::int64_t, 3>& m) const {
         return dist_[static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]))];
     }
 
@@ -128,7 +135,7 @@ private:
     int shift_ = 3;
     std::array<std::int64_t, 3> nodes_{};
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
-    std::vector<std::uint8_t> dist_;      // per macrocell: distance (above); 0: not empty
+    std::vector<std::int8_t> dist_;       // per macrocell: signed_distance (above)
     bool any_ = false;
 };
 
@@ -164,27 +171,37 @@ public:
           inv_dp_{1.0 / grid.span->dp.x, 1.0 / grid.span->dp.y, 1.0 / grid.span->dp.z},
           inv_delta_(1.0 / grid.delta) {}
 
+    /// An empty run holds only samples in empty macrocells (verified on the
+    /// computed positions). A non-empty run goes to the estimated exit from
+    /// the box of non-empty macrocells around sample j, unverified: a sample
+    /// evaluated in an empty macrocell gives (1, 0) anyway, so only the
+    /// skipped runs need to be exact.
     Run run(std::int64_t j, int dir, std::int64_t limit) const {
         const auto m = es_.macrocell(g_.at(j));
-        const int d = es_.distance(m);
-        return {last_in(es_.box(m, d == 0 ? 0 : d - 1), j, dir, limit), d != 0};
+        const int d = es_.signed_distance(m);
+        if (d > 0) return {last_in(es_.box(m, d - 1), j, dir, limit), true};
+        return {estimated_last(es_.box(m, -d - 1), j, dir, limit), false};
     }
 
 private:
+    // The estimated farthest index from j towards limit whose position is in
+    // box b (sample j is in it), within [j, limit].
+    [[nodiscard]] FATHOM_INLINE std::int64_t estimated_last(const EmptySpace::Box& b, std::int64_t j, int dir,
+                                                            std::int64_t limit) const {
+        const double tb = es_.box_exit(*g_.span, inv_dp_, b, dir);
+        // the fractional index of the box exit (inverse of SampleGrid::t)
+        double x = (tb - g_.span->t_near) * inv_delta_ - g_.offset + static_cast<double>(g_.first);
+        if (!std::isfinite(x)) return limit;
+        x = dir > 0 ? std::floor(x) : std::ceil(x);
+        const double lo = static_cast<double>(std::min(j, limit)),
+                     hi = static_cast<double>(std::max(j, limit));
+        return static_cast<std::int64_t>(std::clamp(x, lo, hi));
+    }
     // The farthest index from j towards limit whose position is in box b
     // (sample j is in it).
     [[nodiscard]] FATHOM_INLINE std::int64_t last_in(const EmptySpace::Box& b, std::int64_t j, int dir,
                                                      std::int64_t limit) const {
-        const double tb = es_.box_exit(*g_.span, inv_dp_, b, dir);
-        // the fractional index of the box exit (inverse of SampleGrid::t)
-        double x = (tb - g_.span->t_near) * inv_delta_ - g_.offset + static_cast<double>(g_.first);
-        std::int64_t k = limit;
-        if (std::isfinite(x)) {
-            x = dir > 0 ? std::floor(x) : std::ceil(x);
-            const double lo = static_cast<double>(std::min(j, limit)),
-                         hi = static_cast<double>(std::max(j, limit));
-            k = static_cast<std::int64_t>(std::clamp(x, lo, hi));
-        }
+        std::int64_t k = estimated_last(b, j, dir, limit);
         // Verify on the computed positions (rounding can move the last one out).
         while (k != j && !b.contains(es_.macrocell(g_.at(k)))) k -= dir;
         return k;
