@@ -13,6 +13,11 @@ template <Model M, class Medium>
 RayResult integrate_alpha(const Medium& medium, const RaySpan& span, const RenderSettings& s, double h,
                           const Rgb& bg, const Accel& acc) {
     return integrate_point_sampled<M>(medium, span, s, h, bg, acc, [](const MediumSample& m, double delta) {
+        if (m.sigma == 0.0) {  // the same bits as below (e^{−0} = 1, weight δ) without the libm calls
+            Segment seg{1.0, {}};
+            for (int c = 0; c < 3; ++c) seg.radiance[c] = m.source[c] * delta;
+            return seg;
+        }
         const double alpha = -std::expm1(-m.sigma * delta);             // α_i = 1 − e^{−σδ}
         const double weight = m.sigma > 0.0 ? alpha / m.sigma : delta;  // (1 − e^{−σδ})/σ
         Segment seg{std::exp(-m.sigma * delta), {}};
