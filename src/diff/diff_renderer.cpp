@@ -107,13 +107,13 @@ struct MacrocellRuns {
     RunState operator()(std::int64_t i) const {
         if (finder == nullptr) return {n, false};
         if (!ends) {
-            const auto r = finder->run(i, +1, n);
+            const auto r = finder->run(i, +1, n, true);
             return {r.last, r.empty};
         }
-        const auto r = finder->run(i - 1, +1, n);  // ends i − 1 … r.last in one macrocell
+        const auto r = finder->run(i - 1, +1, n, true);  // ends i − 1 … r.last in one box
         if (r.last >= i) return {r.last, r.empty};
         // Segment i leaves the macrocell: empty when both of its ends' macrocells are.
-        return {i, r.empty && finder->run(i, +1, n).empty};
+        return {i, r.empty && finder->run(i, +1, n, true).empty};
     }
 };
 

@@ -175,12 +175,15 @@ public:
     /// computed positions). A non-empty run goes to the estimated exit from
     /// the box of non-empty macrocells around sample j, unverified: a sample
     /// evaluated in an empty macrocell gives (1, 0) anyway, so only the
-    /// skipped runs need to be exact.
-    Run run(std::int64_t j, int dir, std::int64_t limit) const {
+    /// skipped runs need to be exact. With `exact`, non-empty runs are
+    /// verified too: every sample of a run then lies in its box (the
+    /// differentiable renderer computes no gradient in empty macrocells).
+    Run run(std::int64_t j, int dir, std::int64_t limit, bool exact = false) const {
         const auto m = es_.macrocell(g_.at(j));
         const int d = es_.signed_distance(m);
         if (d > 0) return {last_in(es_.box(m, d - 1), j, dir, limit), true};
-        return {estimated_last(es_.box(m, -d - 1), j, dir, limit), false};
+        const EmptySpace::Box b = es_.box(m, -d - 1);
+        return {exact ? last_in(b, j, dir, limit) : estimated_last(b, j, dir, limit), false};
     }
 
 private:
