@@ -1,5 +1,6 @@
 #include "render/empty_space.h"
 
+#include <algorithm>
 #include <atomic>
 #include <limits>
 #include <thread>
@@ -13,14 +14,17 @@ struct Range {
     bool nan = false;
 };
 
-/// The node range of every macrocell of component 0 of `v`, macrocell
-/// slabs (fixed z) spread over threads.
-std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64_t, 3>& md, int shift,
-                                    int threads) {
+/// Classifies every macrocell of component 0 of `v` by its node range:
+/// +1 where empty(lo, hi) (never with a NaN node), −1 elsewhere; macrocell
+/// slabs (fixed z) spread over threads. One byte per macrocell: the ranges
+/// are not kept (on the bunny at 4³ cells they would be 36 MB).
+template <class Empty>
+std::vector<std::int8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
+                                             int shift, int threads, const Empty& empty) {
     const std::int64_t cells = std::int64_t{1} << shift;
     const auto& n = v.dims();
     const std::int64_t comps = v.components();
-    std::vector<Range> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
+    std::vector<std::int8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
     visit_dtype(v.dtype(), [&]<class T>(T*) {
         const T* data = v.data<T>();
         std::atomic<std::int64_t> next{0};
@@ -42,7 +46,8 @@ std::vector<Range> macrocell_ranges(const Volume& v, const std::array<std::int64
                                     r.hi = std::max(r.hi, s);
                                 }
                             }
-                        out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = r;
+                        const bool e = !r.nan && empty(r.lo, r.hi);  // NaN nodes: never empty
+                        out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = e ? 1 : -1;
                     }
                 }
             }
@@ -74,13 +79,8 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.shift_ = shift;
     es.nodes_ = v.dims();
     es.dims_ = macro_dims(v, shift);
-    const auto ranges = macrocell_ranges(v, es.dims_, shift, resolve_threads(threads));
-    es.dist_.resize(ranges.size());
-    for (std::size_t i = 0; i < ranges.size(); ++i) {
-        const bool e = !ranges[i].nan && empty(ranges[i].lo, ranges[i].hi);  // NaN nodes: never empty
-        es.dist_[i] = e ? 1 : -1;
-        es.any_ = es.any_ || e;
-    }
+    es.dist_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
+    es.any_ = std::find(es.dist_.begin(), es.dist_.end(), std::int8_t{1}) != es.dist_.end();
     es.build_distance();
     return es;
 }
