@@ -23,6 +23,17 @@ namespace fathom {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+/// Iterations on grid level l before the last under `level_iterations`
+/// (FitOptions): its entry l, or the last entry for any further level.
+long coarse_iterations(const std::vector<int>& level_iterations, long l) {
+    return l < static_cast<long>(level_iterations.size()) ? level_iterations[static_cast<std::size_t>(l)]
+                                                          : level_iterations.back();
+}
+
+}  // namespace
+
 void FitOptions::validate() const {
     auto fail = [](const std::string& m) { throw Error("fit options", m); };
     for (int a = 0; a < 3; ++a)
@@ -46,14 +57,11 @@ void FitOptions::validate() const {
     if (static_cast<int>(level_iterations.size()) > coarse_levels)
         fail("level iterations name " + std::to_string(level_iterations.size()) + " grids, but only " +
              std::to_string(coarse_levels) + " come before the last");
-    long coarse = 0;
-    for (const int n : level_iterations) {
+    for (const int n : level_iterations)
         if (n < 1) fail("level iterations must be ≥ 1");
-        coarse += n;
-    }
+    long coarse = 0;
     if (!level_iterations.empty())
-        coarse += static_cast<long>(coarse_levels - static_cast<int>(level_iterations.size())) *
-                  level_iterations.back();
+        for (long l = 0; l < coarse_levels; ++l) coarse += coarse_iterations(level_iterations, l);
     if (coarse >= iterations) fail("the grids before the last must leave iterations for the last");
 }
 
@@ -240,10 +248,7 @@ struct Fitter::Impl {
         if (l >= L) return o.iterations;
         if (o.level_iterations.empty()) return (l * o.iterations + L - 1) / L;  // ⌈l·N/L⌉
         long begin = 0;
-        for (long k = 0; k < l; ++k)
-            begin += k < static_cast<long>(o.level_iterations.size())
-                         ? o.level_iterations[static_cast<std::size_t>(k)]
-                         : o.level_iterations.back();
+        for (long k = 0; k < l; ++k) begin += coarse_iterations(o.level_iterations, k);
         return begin;
     }
     /// The level the schedule puts iteration i on.
