@@ -1,12 +1,14 @@
-// SIMD classification of point samples (src/integrate/simd_classify.h):
+// SIMD classification of point samples and pre-integration's end samples
+// (src/integrate/simd_classify.h):
 // every target this CPU runs gives images bit-identical to the scalar path.
 #include <cstring>
 
 #include <gtest/gtest.h>
 
 #include "fathom/render.h"
-#include "integrate/simd_classify.h"
 
+#include "integrate/simd_classify.h"
+#include "render/empty_space.h"
 #include "synthetic.h"
 
 using namespace fathom;
@@ -34,7 +36,8 @@ TransferFunction tf(bool associated) {
     t.alpha_kind = TransferFunction::Alpha::extinction;
     t.alpha_points = {{20, 0.0}, {60, 0.05}, {100, 0.05}, {100, 0.2}, {150, 0.4}, {190, 0.1}};
     t.associated = associated;
-    t.color_points = {{30, {0.1, 0.2, 0.9}}, {150, {1.0, 0.5, 0.2}}, {150, {0.9, 0.9, 0.9}}, {180, {1, 0, 0}}};
+    t.color_points = {
+        {30, {0.1, 0.2, 0.9}}, {150, {1.0, 0.5, 0.2}}, {150, {0.9, 0.9, 0.9}}, {180, {1, 0, 0}}};
     return t;
 }
 
@@ -53,30 +56,40 @@ TEST(Simd, EveryTargetIsBitIdenticalToScalar) {
         const Volume v = field(type);
         const Bounds b = volume_bounds(v);
         for (bool associated : {false, true})
-            for (auto kind : {IntegratorKind::alpha, IntegratorKind::riemann})
-                for (auto order : {Order::front_to_back, Order::back_to_front}) {
-                    RenderSettings s;
-                    s.width = s.height = 24;
-                    s.integrator = kind;
-                    s.order = order;
-                    s.step = 0.37;
-                    s.jitter = order == Order::back_to_front;
-                    s.threads = 1;
-                    const Camera cam = Camera::orbit(37, 21, 2.4, b.center, b.radius);
-                    s.simd = false;
-                    const Image scalar = Renderer(v, tf(associated), s).render(cam);
-                    s.simd = true;
-                    for (auto t : targets) {
-                        simd::force_target(t);
-                        EXPECT_TRUE(same(Renderer(v, tf(associated), s).render(cam), scalar))
-                            << simd::active_target() << " " << dtype_name(type) << " " << to_string(kind) << " "
-                            << to_string(order) << (associated ? " associated" : "");
-                        ++compared;
+            for (auto kind : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated,
+                              IntegratorKind::preintegrated_simple})
+                for (auto order : {Order::front_to_back, Order::back_to_front})
+                    for (auto model : {Model::emission_absorption, Model::absorption, Model::emission}) {
+                        // the zero-medium shortcut differs per model; the end samples of
+                        // pre-integration do not
+                        if (model != Model::emission_absorption &&
+                            (kind == IntegratorKind::preintegrated ||
+                             kind == IntegratorKind::preintegrated_simple))
+                            continue;
+                        RenderSettings s;
+                        s.model = model;
+                        s.width = s.height = 24;
+                        s.integrator = kind;
+                        s.order = order;
+                        s.step = 0.37;
+                        s.jitter = order == Order::back_to_front;
+                        s.threads = 1;
+                        const Camera cam = Camera::orbit(37, 21, 2.4, b.center, b.radius);
+                        s.simd = false;
+                        const Image scalar = Renderer(v, tf(associated), s).render(cam);
+                        s.simd = true;
+                        for (auto t : targets) {
+                            simd::force_target(t);
+                            EXPECT_TRUE(same(Renderer(v, tf(associated), s).render(cam), scalar))
+                                << simd::active_target() << " " << dtype_name(type) << " " << to_string(kind)
+                                << " " << to_string(order) << " " << to_string(s.model)
+                                << (associated ? " associated" : "");
+                            ++compared;
+                        }
+                        simd::force_target(0);
                     }
-                    simd::force_target(0);
-                }
     }
-    EXPECT_GE(compared, 40);
+    EXPECT_GE(compared, 80);
 }
 
 TEST(Simd, DispatchesToTheBestTargetByDefault) {
@@ -89,4 +102,26 @@ TEST(Simd, DispatchesToTheBestTargetByDefault) {
     simd::force_target(targets.front());
     EXPECT_EQ(simd::active_target(), best);
     simd::force_target(0);
+}
+
+// The scalar below which the medium is exactly zero, per model: σ = 0 below
+// 20, c = 0 below 30 (associated: q).
+TEST(Simd, ZeroBelowFollowsTheModel) {
+    TransferFunction t;
+    t.alpha_kind = TransferFunction::Alpha::extinction;
+    t.alpha_points = {{20, 0.0}, {60, 0.5}};
+    t.color_points = {{30, {0, 0, 0}}, {90, {1, 1, 1}}};
+    const Classifier plain(t, 1.0);
+    EXPECT_EQ(zero_below(plain, Model::emission_absorption), 20.0);
+    EXPECT_EQ(zero_below(plain, Model::absorption), 20.0);
+    EXPECT_EQ(zero_below(plain, Model::emission), 30.0);  // g = σ·c: either factor
+    EXPECT_EQ(zero_below(plain, Model::mip), -INFINITY);
+    t.associated = true;
+    const Classifier assoc(t, 1.0);
+    EXPECT_EQ(zero_below(assoc, Model::emission_absorption), 20.0);  // both σ and q
+    EXPECT_EQ(zero_below(assoc, Model::emission), 30.0);
+    t.alpha_points = {{20, 0.0}};
+    EXPECT_EQ(zero_below(Classifier(t, 1.0), Model::absorption), INFINITY);
+    t.alpha_points = {{20, 0.1}, {60, 0.0}};
+    EXPECT_EQ(zero_below(Classifier(t, 1.0), Model::absorption), -INFINITY);
 }

@@ -5,7 +5,6 @@
 #pragma once
 
 #include <algorithm>
-#include <limits>
 
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
@@ -32,24 +31,18 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
     // SIMD: samples classified kBatch at a time, in the direction of travel.
     const simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, offset, 1};
     simd::BatchOut batch;
-    std::int64_t b0 = std::numeric_limits<std::int64_t>::min() / 2, b1 = b0;  // batch holds b0..b1
+    simd::Window win;
     // The far end of the run being evaluated (set by the skipping walk):
     // batches stop there, since what follows may be skipped.
     std::int64_t run_end = s.order == Order::front_to_back ? n : 1;
     auto sample = [&](std::int64_t i) -> MediumSample {
         if constexpr (Medium::kHasScalar) {
             if (acc.simd != nullptr) {
-                if (i < b0 || i > b1) {
-                    if (s.order == Order::front_to_back) {
-                        b0 = i;
-                        b1 = std::min<std::int64_t>(i + simd::kBatch - 1, std::max(i, run_end));
-                    } else {
-                        b0 = std::max<std::int64_t>(i - simd::kBatch + 1, std::min(i, run_end));
-                        b1 = i;
-                    }
-                    simd::classify_batch(*acc.simd, rg, b0, static_cast<int>(b1 - b0 + 1), batch);
+                if (!win.holds(i)) {
+                    win.start_at(i, s.order == Order::front_to_back, run_end);
+                    simd::classify_batch(*acc.simd, rg, win.b0, win.count(), batch);
                 }
-                const auto l = static_cast<std::size_t>(i - b0);
+                const auto l = static_cast<std::size_t>(i - win.b0);
                 MediumSample m{batch.sigma[l], {batch.color[0][l], batch.color[1][l], batch.color[2][l]}};
                 if (!medium.tf->associated())  // as ScalarMedium::classify
                     for (double& c : m.source) c *= m.sigma;

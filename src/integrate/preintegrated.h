@@ -23,6 +23,7 @@
 
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
+#include "integrate/simd_classify.h"
 #include "render/empty_space.h"
 #include "render/shading.h"
 
@@ -165,12 +166,15 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
     return {std::exp(-r.depth), r.radiance};
 }
 
-/// The integrator: samples the n + 1 segment ends once each (a two-slot
-/// cache serves both orders) and composites the segments. With `es`, runs of
-/// segments whose two ends lie in one empty macrocell are skipped (exact).
+/// The integrator: samples the n + 1 segment ends once each and composites
+/// the segments. The scalar of a scalar medium is interpolated kBatch ends
+/// at a time with `simd` (the same bits); otherwise a two-slot cache serves
+/// both orders. With `es`, runs of segments whose two ends lie in one empty
+/// macrocell are skipped (exact).
 template <Model M, class Medium>
 RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
-                                  double h, const Rgb& bg, bool full, const EmptySpace* es) {
+                                  double h, const Rgb& bg, bool full, const EmptySpace* es,
+                                  const simd::BatchSource* simd = nullptr) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
     const SampleGrid grid{&span, delta, 0.0, 0};  // end j at t_near + j·δ
@@ -178,7 +182,22 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     std::array<std::int64_t, 2> idx{-1, -1};
     std::array<End, 2> val{};
     int older = 0;
+    // SIMD: the ends `win` holds in `batch`; run_end is the last end the
+    // evaluated run needs (set by the skipping walk).
+    const simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, 0.0, 0};
+    alignas(64) double batch[simd::kBatch];
+    simd::Window win;
+    std::int64_t run_end = s.order == Order::front_to_back ? n : 0;
     auto end = [&](std::int64_t j) -> End {
+        if constexpr (Medium::kHasScalar) {
+            if (simd != nullptr) {
+                if (!win.holds(j)) {
+                    win.start_at(j, s.order == Order::front_to_back, run_end);
+                    simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
+                }
+                return batch[j - win.b0];
+            }
+        }
         if (idx[0] == j) return val[0];
         if (idx[1] == j) return val[1];
         const int slot = older;
@@ -231,12 +250,16 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         [&](std::int64_t i, int dir) -> std::int64_t {
             if (dir > 0) {  // front ends i−1..k share a macrocell
                 const auto run = runs.run(i - 1, +1, n);
-                if (run.empty && run.last >= i) return run.last - i + 1;  // segments i..k
-                return -std::max<std::int64_t>(1, run.last - i + 2);      // segments i..k+1
+                if (run.empty && run.last >= i) return run.last - i + 1;             // segments i..k
+                const std::int64_t m = std::max<std::int64_t>(1, run.last - i + 2);  // segments i..k+1
+                run_end = i + m - 1;
+                return -m;
             }
-            const auto run = runs.run(i, -1, 0);                  // back ends k..i share a macrocell
-            if (run.empty && run.last < i) return i - run.last;   // segments k+1..i
-            return -std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
+            const auto run = runs.run(i, -1, 0);                 // back ends k..i share a macrocell
+            if (run.empty && run.last < i) return i - run.last;  // segments k+1..i
+            const std::int64_t m = std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
+            run_end = i - m;
+            return -m;
         },
         track);
 }

@@ -54,8 +54,11 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     }
 }
 
+/// The trilinear scalar (GridSampler's operations) of samples j0 ..
+/// j0 + count − 1, rounded up to whole vectors; returns how many it wrote.
 template <class T>
-void classify_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count,
+                              double* out) {
     const D d;
     const std::size_t N = hn::Lanes(d);
     const T* data = static_cast<const T*>(src.data);
@@ -108,7 +111,24 @@ void classify_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
         const V c11 = hn::Add(c(6), hn::Mul(fx, hn::Sub(c(7), c(6))));
         const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
         const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
-        const V v = hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0)));
+        hn::Store(hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0))), d, out + b);
+    }
+    return used;
+}
+
+void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+    const D d;
+    HWY_ALIGN double values[kBatch];
+    std::size_t used = 0;
+    visit_dtype(src.type, [&]<class T>(T*) { used = interpolate_typed<T>(src, ray, j0, count, values); });
+    const V zero_below = hn::Set(d, src.zero_below);
+    for (std::size_t b = 0; b < used; b += hn::Lanes(d)) {
+        const V v = hn::Load(d, values + b);
+        if (hn::AllTrue(d, hn::Lt(v, zero_below))) {  // the medium is zero: σ = 0 and g = 0 downstream
+            hn::Store(hn::Zero(d), d, out.sigma + b);
+            for (int k = 0; k < 3; ++k) hn::Store(hn::Zero(d), d, out.color[k] + b);
+            continue;
+        }
         V r[3];
         eval(d, *src.sigma, v, r);
         hn::Store(r[0], d, out.sigma + b);
@@ -117,8 +137,8 @@ void classify_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
     }
 }
 
-void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
-    visit_dtype(src.type, [&]<class T>(T*) { classify_typed<T>(src, ray, j0, count, out); });
+void InterpolateBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {
+    visit_dtype(src.type, [&]<class T>(T*) { interpolate_typed<T>(src, ray, j0, count, out); });
 }
 
 std::int64_t TargetOf() {
@@ -134,10 +154,15 @@ HWY_AFTER_NAMESPACE();
 namespace fathom::simd {
 
 HWY_EXPORT(ClassifyBatch);
+HWY_EXPORT(InterpolateBatch);
 HWY_EXPORT(TargetOf);
 
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     HWY_DYNAMIC_DISPATCH(ClassifyBatch)(src, ray, j0, count, out);
+}
+
+void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {
+    HWY_DYNAMIC_DISPATCH(InterpolateBatch)(src, ray, j0, count, out);
 }
 
 namespace {

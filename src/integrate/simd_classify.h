@@ -10,7 +10,10 @@
 // Classifier; tests check every target against the scalar path.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -38,12 +41,34 @@ struct BatchSource {
     std::int64_t nx = 0, ny = 0, nz = 0;
     const FlatFunction* sigma = nullptr;
     const FlatFunction* color = nullptr;
+    /// Scalars below this give a medium that is exactly zero under the
+    /// frame's model (render/empty_space.h zero_below): a vector of such
+    /// samples is stored as σ = 0, c = 0 without evaluating the functions.
+    double zero_below = -INFINITY;
 };
 
 struct RayGrid {
     Vec3 p0, dp;
     double t_near = 0, delta = 0, offset = 0;
     std::int64_t first = 1;
+};
+
+/// The samples a batch holds, b0..b1: up to kBatch from the one asked for,
+/// in the direction of travel, not beyond `run_end` (the end of the run
+/// being evaluated: what follows may be skipped).
+struct Window {
+    std::int64_t b0 = std::numeric_limits<std::int64_t>::min() / 2, b1 = b0;
+    [[nodiscard]] bool holds(std::int64_t j) const { return j >= b0 && j <= b1; }
+    [[nodiscard]] int count() const { return static_cast<int>(b1 - b0 + 1); }
+    void start_at(std::int64_t j, bool forward, std::int64_t run_end) {
+        if (forward) {
+            b0 = j;
+            b1 = std::min<std::int64_t>(j + kBatch - 1, std::max(j, run_end));
+        } else {
+            b0 = std::max<std::int64_t>(j - kBatch + 1, std::min(j, run_end));
+            b1 = j;
+        }
+    }
 };
 
 /// σ and c (or q) of samples j0 .. j0 + kBatch − 1.
@@ -58,6 +83,11 @@ FlatFunction flatten(const PiecewiseLinear<3>& f);
 /// Classifies samples j0 .. j0 + count − 1 (count ≤ kBatch; whole vectors
 /// are computed, so a few more may be filled) with the best target.
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out);
+
+/// The trilinear scalar alone of samples j0 .. j0 + count − 1 (GridSampler's
+/// bits), for pre-integration's segment ends; `out` holds kBatch values
+/// (whole vectors are computed) and is 64-byte aligned.
+void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out);
 
 /// The name of the target classify_batch dispatches to now (e.g. "AVX2").
 std::string active_target();

@@ -25,6 +25,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "fathom/math.h"
@@ -47,6 +48,17 @@ inline bool medium_zero_on(const Classifier& tf, Model m, double a, double b) {
     if (m == Model::absorption) return no_sigma;
     if (tf.associated()) return (m == Model::emission || no_sigma) && tf.color_zero_on(a, b);
     return no_sigma || (m == Model::emission && tf.color_zero_on(a, b));
+}
+
+/// The largest E such that the medium under model m is exactly zero for
+/// every scalar below E (−∞: none; +∞: everywhere): E is a control value.
+inline double zero_below(const Classifier& tf, Model m) {
+    if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return -INFINITY;
+    if (medium_zero_on(tf, m, -INFINITY, std::numeric_limits<double>::max())) return INFINITY;
+    double e = -INFINITY;
+    for (double k : tf.breakpoints())
+        if (k > e && medium_zero_on(tf, m, -INFINITY, std::nextafter(k, -INFINITY))) e = k;
+    return e;
 }
 
 class EmptySpace {

@@ -67,8 +67,9 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
     if (impl_->s.simd) {
         impl_->flat_sigma = simd::flatten(impl_->tf.sigma_function());
         impl_->flat_color = simd::flatten(impl_->tf.color_function());
-        impl_->batch = {volume.bytes(),   volume.dtype(),     volume.dims()[0],  volume.dims()[1],
-                        volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color};
+        impl_->batch = {
+            volume.bytes(),   volume.dtype(),     volume.dims()[0],   volume.dims()[1],
+            volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color, zero_below(impl_->tf, impl_->s.model)};
     }
     const Shading& sh = impl_->s.shading;
     const Model model = impl_->s.model;

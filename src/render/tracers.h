@@ -52,8 +52,8 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
         case IntegratorKind::preintegrated:
         case IntegratorKind::preintegrated_simple: {
             const bool full = s.integrator == IntegratorKind::preintegrated;
-            return [med, s, h, bg, full, es](const RaySpan& sp) {
-                return integrate_preintegrated<M>(for_ray(med, sp), sp, s, h, bg, full, es);
+            return [med, s, h, bg, full, acc](const RaySpan& sp) {
+                return integrate_preintegrated<M>(for_ray(med, sp), sp, s, h, bg, full, acc.es, acc.simd);
             };
         }
     }
