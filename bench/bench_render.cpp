@@ -94,6 +94,37 @@ void roofline_trilinear(benchmark::State& state) {
         benchmark::Counter(static_cast<double>(pos.size()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// The SIMD path's trilinear interpolation alone (simd::interpolate_batch,
+// 16 samples per call, the best target) along 64 rays through the cached
+// volume at step 0.25: the sampling peak the vectorised inner loop can reach.
+void roofline_trilinear_simd(benchmark::State& state) {
+    const fathom::Volume& v = cache_volume();
+    const fathom::simd::BatchSource src{v.bytes(), v.dtype(), 64, 64, 64, nullptr, nullptr};
+    std::vector<fathom::simd::RayGrid> rays;
+    std::vector<std::int64_t> counts;
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> u(0.0, 63.0);
+    std::int64_t samples = 0;
+    for (int i = 0; i < 64; ++i) {
+        const fathom::Vec3 a{0.0, u(rng), u(rng)}, b{63.0, u(rng), u(rng)};
+        const double len = fathom::length(b - a);
+        rays.push_back({a, (b - a) * (1.0 / len), 0.0, 0.25, 0.5, 1});
+        counts.push_back(static_cast<std::int64_t>(len / 0.25));
+        samples += counts.back();
+    }
+    alignas(64) double out[fathom::simd::kBatch];
+    for (auto _ : state)
+        for (std::size_t r = 0; r < rays.size(); ++r)
+            for (std::int64_t j = 1; j <= counts[r]; j += fathom::simd::kBatch) {
+                fathom::simd::interpolate_batch(
+                    src, rays[r], j,
+                    static_cast<int>(std::min<std::int64_t>(fathom::simd::kBatch, counts[r] - j + 1)), out);
+                benchmark::DoNotOptimize(out);
+            }
+    state.counters["samples/s"] =
+        benchmark::Counter(static_cast<double>(samples), benchmark::Counter::kIsIterationInvariantRate);
+}
+
 // A whole ray through the cached volume with one integrator's real code
 // (sample, classify, segment rule, compositing; no early termination, no
 // skipping): the per-sample peak the renderer's inner loop can reach.
@@ -129,7 +160,7 @@ void roofline_ray(benchmark::State& state) {
                     fathom::integrate_alpha<fathom::Model::emission_absorption>(med, sp, s, h, bg, acc));
             else
                 benchmark::DoNotOptimize(fathom::integrate_preintegrated<fathom::Model::emission_absorption>(
-                    med, sp, s, h, bg, K == fathom::IntegratorKind::preintegrated, nullptr));
+                    med, sp, s, h, bg, K == fathom::IntegratorKind::preintegrated, nullptr, acc.simd));
         }
     state.counters["samples/s"] =
         benchmark::Counter(static_cast<double>(samples), benchmark::Counter::kIsIterationInvariantRate);
@@ -138,11 +169,16 @@ void roofline_ray(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(roofline_trilinear);
+BENCHMARK(roofline_trilinear_simd);
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha)->Name("roofline_ray/alpha");
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha, true)->Name("roofline_ray/alpha-simd");
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated)->Name("roofline_ray/preintegrated");
+BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated, true)
+    ->Name("roofline_ray/preintegrated-simd");
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated_simple)
     ->Name("roofline_ray/preintegrated-simple");
+BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated_simple, true)
+    ->Name("roofline_ray/preintegrated-simple-simd");
 BENCHMARK(table_build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(render, alpha, fathom::IntegratorKind::alpha)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, riemann, fathom::IntegratorKind::riemann)->Arg(256)->Unit(benchmark::kMillisecond);
