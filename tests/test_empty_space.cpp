@@ -242,6 +242,27 @@ TEST(EmptySpace, DistanceBoxesSkipLargeEmptyRegionsExactly) {
             EXPECT_GT(deep, 0);  // the blob's inside is a box of non-empty macrocells
         }
         EXPECT_EQ(wrong, 0) << shift;
+        // Ahead in each octant: the nearest non-empty macrocell in the
+        // octant's cone, by the largest per-axis step to it (255: none).
+        int wrong_ahead = 0, farther = 0;
+        for (int o = 0; o < 8; ++o)
+            for (const auto& m : empty) {
+                int best = 255;
+                for (const auto& f : full) {
+                    std::int64_t reach = 0;
+                    bool ahead = true;
+                    for (int a = 0; a < 3; ++a) {
+                        const std::int64_t step = ((o >> a) & 1) != 0 ? m[a] - f[a] : f[a] - m[a];
+                        ahead = ahead && step >= 0;
+                        reach = std::max(reach, step);
+                    }
+                    if (ahead) best = std::min<int>(best, static_cast<int>(reach));
+                }
+                wrong_ahead += es.distance_ahead(m, o) != best ? 1 : 0;
+                farther += es.distance_ahead(m, o) > es.distance(m) ? 1 : 0;
+            }
+        EXPECT_EQ(wrong_ahead, 0) << shift;
+        EXPECT_GT(farther, 0) << shift;
     }
     for (auto k : kSkipping)
         for (auto o : {Order::front_to_back, Order::back_to_front})

@@ -82,6 +82,7 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.dist_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
     es.any_ = std::find(es.dist_.begin(), es.dist_.end(), std::int8_t{1}) != es.dist_.end();
     es.build_distance();
+    es.build_ahead(resolve_threads(threads));
     return es;
 }
 
@@ -145,6 +146,49 @@ void EmptySpace::build_distance() {
     for (std::size_t i = 0; i < dist_.size(); ++i)
         dist_[i] =
             dist_[i] > 0 ? static_cast<std::int8_t>(to_full[i]) : static_cast<std::int8_t>(-to_empty[i]);
+}
+
+// One pass per octant, from the far corner of that octant back: the box
+// reaching r ahead of m is m and the boxes reaching r − 1 ahead of its 7
+// neighbours ahead, so D(m) = 1 + min over them (0 where not empty; the
+// grid's outside does not stop a box, which is clipped).
+void EmptySpace::build_ahead(int threads) {
+    const std::size_t n = dist_.size();
+    ahead_.assign(n * 8, 0);
+    const auto& d = dims_;
+    auto octant = [&](int o) {
+        const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
+        std::uint8_t* ahead = ahead_.data() + static_cast<std::size_t>(o) * n;  // octant-major
+        for (std::int64_t zi = 0; zi < d[2]; ++zi)
+            for (std::int64_t yi = 0; yi < d[1]; ++yi)
+                for (std::int64_t xi = 0; xi < d[0]; ++xi) {
+                    // visit the cells ahead first: against the octant's direction
+                    const std::array<std::int64_t, 3> m{s[0] > 0 ? d[0] - 1 - xi : xi,
+                                                        s[1] > 0 ? d[1] - 1 - yi : yi,
+                                                        s[2] > 0 ? d[2] - 1 - zi : zi};
+                    const std::size_t i = index(m);
+                    if (dist_[i] <= 0) continue;
+                    int best = 255;
+                    for (int e = 1; e < 8; ++e) {
+                        const std::array<std::int64_t, 3> q{m[0] + ((e & 1) != 0 ? s[0] : 0),
+                                                            m[1] + ((e & 2) != 0 ? s[1] : 0),
+                                                            m[2] + ((e & 4) != 0 ? s[2] : 0)};
+                        if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= d[0] || q[1] >= d[1] || q[2] >= d[2])
+                            continue;
+                        best = std::min(best, static_cast<int>(ahead[index(q)]));
+                    }
+                    ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, 255));
+                }
+    };
+    // the octants are independent: spread them over the threads
+    std::atomic<int> next{0};
+    auto worker = [&] {
+        for (int o = next++; o < 8; o = next++) octant(o);
+    };
+    std::vector<std::thread> pool;
+    for (int i = 1; i < std::min(threads, 8); ++i) pool.emplace_back(worker);
+    worker();
+    for (auto& t : pool) t.join();
 }
 
 double EmptySpace::empty_fraction() const {

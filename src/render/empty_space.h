@@ -97,7 +97,15 @@ public:
     /// macrocell within |d| − 1 of m is non-empty (the grid's outside does
     /// not count as empty).
     [[nodiscard]] FATHOM_INLINE int signed_distance(const std::array<std::int64_t, 3>& m) const {
-        return dist_[static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]))];
+        return dist_[index(m)];
+    }
+    /// For an empty macrocell m, the largest D such that the box from m
+    /// reaching D − 1 macrocells ahead in octant `o` (bit a set: axis a
+    /// goes down) is empty, clipped to the grid (capped at 255); 0 for a
+    /// non-empty one. At least distance(m): a ray leaving m in that octant
+    /// crosses the empty region ahead of it, not only the box around m.
+    [[nodiscard]] FATHOM_INLINE int distance_ahead(const std::array<std::int64_t, 3>& m, int o) const {
+        return ahead_[static_cast<std::size_t>(o) * dist_.size() + index(m)];
     }
 
     /// The box of macrocells within Chebyshev distance r of m, clipped to the grid.
@@ -108,6 +116,18 @@ public:
                    c[2] <= hi[2];
         }
     };
+    /// The box reaching r macrocells ahead of m in octant o, clipped to the grid.
+    [[nodiscard]] FATHOM_INLINE Box box_ahead(const std::array<std::int64_t, 3>& m, std::int64_t r,
+                                              int o) const {
+        Box b;
+        for (int a = 0; a < 3; ++a) {
+            const bool down = ((o >> a) & 1) != 0;
+            b.lo[a] = down ? std::max<std::int64_t>(m[a] - r, 0) : m[a];
+            b.hi[a] = down ? m[a] : std::min<std::int64_t>(m[a] + r, dims_[a] - 1);
+        }
+        return b;
+    }
+    /// The box of macrocells within Chebyshev distance r of m, clipped to the grid.
     [[nodiscard]] FATHOM_INLINE Box box(const std::array<std::int64_t, 3>& m, std::int64_t r) const {
         Box b;
         for (int a = 0; a < 3; ++a) {
@@ -139,6 +159,10 @@ private:
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     void build_distance();
+    void build_ahead(int threads);
+    [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
+        return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
+    }
     [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
         const double x = std::clamp(p, 0.0, static_cast<double>(nodes_[a] - 1));
         return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
@@ -148,6 +172,7 @@ private:
     std::array<std::int64_t, 3> nodes_{};
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
     std::vector<std::int8_t> dist_;       // per macrocell: signed_distance (above)
+    std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like dist_, one per octant
     bool any_ = false;
 };
 
@@ -181,7 +206,11 @@ public:
         : es_(es),
           g_(grid),
           inv_dp_{1.0 / grid.span->dp.x, 1.0 / grid.span->dp.y, 1.0 / grid.span->dp.z},
-          inv_delta_(1.0 / grid.delta) {}
+          inv_delta_(1.0 / grid.delta) {
+        for (int a = 0; a < 3; ++a)  // the octant a ray travels in: forward, and backward
+            if (grid.span->dp[a] < 0.0) octant_fwd_ |= 1 << a;
+        octant_back_ = 7 ^ octant_fwd_;
+    }
 
     /// An empty run holds only samples in empty macrocells (verified on the
     /// computed positions). A non-empty run goes to the estimated exit from
@@ -193,7 +222,10 @@ public:
     Run run(std::int64_t j, int dir, std::int64_t limit, bool exact = false) const {
         const auto m = es_.macrocell(g_.at(j));
         const int d = es_.signed_distance(m);
-        if (d > 0) return {last_in(es_.box(m, d - 1), j, dir, limit), true};
+        if (d > 0) {  // the empty region ahead of the ray
+            const int o = dir > 0 ? octant_fwd_ : octant_back_;
+            return {last_in(es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o), j, dir, limit), true};
+        }
         const EmptySpace::Box b = es_.box(m, -d - 1);
         return {exact ? last_in(b, j, dir, limit) : estimated_last(b, j, dir, limit), false};
     }
@@ -226,6 +258,7 @@ private:
     SampleGrid g_;
     Vec3 inv_dp_;
     double inv_delta_;
+    int octant_fwd_ = 0, octant_back_ = 7;
 };
 
 }  // namespace fathom
