@@ -15,16 +15,16 @@ struct Range {
 };
 
 /// Classifies every macrocell of component 0 of `v` by its node range:
-/// +1 where empty(lo, hi) (never with a NaN node), −1 elsewhere; macrocell
+/// 1 where empty(lo, hi) (never with a NaN node), 0 elsewhere; macrocell
 /// slabs (fixed z) spread over threads. One byte per macrocell: the ranges
 /// are not kept (on the bunny at 4³ cells they would be 36 MB).
 template <class Empty>
-std::vector<std::int8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
-                                             int shift, int threads, const Empty& empty) {
+std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
+                                              int shift, int threads, const Empty& empty) {
     const std::int64_t cells = std::int64_t{1} << shift;
     const auto& n = v.dims();
     const std::int64_t comps = v.components();
-    std::vector<std::int8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
+    std::vector<std::uint8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
     visit_dtype(v.dtype(), [&]<class T>(T*) {
         const T* data = v.data<T>();
         std::atomic<std::int64_t> next{0};
@@ -47,7 +47,7 @@ std::vector<std::int8_t> classify_macrocells(const Volume& v, const std::array<s
                                 }
                             }
                         const bool e = !r.nan && empty(r.lo, r.hi);  // NaN nodes: never empty
-                        out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = e ? 1 : -1;
+                        out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = e ? 1 : 0;
                     }
                 }
             }
@@ -79,9 +79,8 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.shift_ = shift;
     es.nodes_ = v.dims();
     es.dims_ = macro_dims(v, shift);
-    es.dist_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
-    es.any_ = std::find(es.dist_.begin(), es.dist_.end(), std::int8_t{1}) != es.dist_.end();
-    es.build_distance();
+    es.empty_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
+    es.any_ = std::find(es.empty_.begin(), es.empty_.end(), std::uint8_t{1}) != es.empty_.end();
     es.build_ahead(resolve_threads(threads));
     return es;
 }
@@ -96,64 +95,13 @@ EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads
     return from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
 }
 
-namespace {
-
-/// The chessboard distance transform (in place, capped at the seeds' start
-/// value): cells holding 0 are the seeds; two raster passes over the
-/// 26-neighbourhood (exact for this metric).
-void chessboard_transform(std::vector<std::uint8_t>& dist, const std::array<std::int64_t, 3>& d) {
-    auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) -> std::uint8_t& {
-        return dist[static_cast<std::size_t>(x + d[0] * (y + d[1] * z))];
-    };
-    auto pass = [&](int s) {  // s = +1: forward (neighbours before), −1: backward
-        for (std::int64_t zi = 0; zi < d[2]; ++zi)
-            for (std::int64_t yi = 0; yi < d[1]; ++yi)
-                for (std::int64_t xi = 0; xi < d[0]; ++xi) {
-                    const std::int64_t z = s > 0 ? zi : d[2] - 1 - zi, y = s > 0 ? yi : d[1] - 1 - yi,
-                                       x = s > 0 ? xi : d[0] - 1 - xi;
-                    std::uint8_t& v = at(x, y, z);
-                    if (v == 0) continue;
-                    int best = v;
-                    for (int dz = -1; dz <= 0; ++dz)
-                        for (int dy = -1; dy <= 1; ++dy)
-                            for (int dx = -1; dx <= 1; ++dx) {
-                                // the 13 neighbours that come earlier in this pass's order
-                                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
-                                const std::int64_t nx = x + s * dx, ny = y + s * dy, nz = z + s * dz;
-                                if (nx < 0 || ny < 0 || nz < 0 || nx >= d[0] || ny >= d[1] || nz >= d[2])
-                                    continue;
-                                best = std::min(best, at(nx, ny, nz) + 1);
-                            }
-                    v = static_cast<std::uint8_t>(best);
-                }
-    };
-    pass(+1);
-    pass(-1);
-}
-
-}  // namespace
-
-// dist_ holds +1 (empty) or −1 (not) on entry: each kind's distance to the
-// nearest macrocell of the other kind, signed.
-void EmptySpace::build_distance() {
-    std::vector<std::uint8_t> to_full(dist_.size()), to_empty(dist_.size());
-    for (std::size_t i = 0; i < dist_.size(); ++i) {
-        to_full[i] = dist_[i] > 0 ? kMaxDistance : 0;
-        to_empty[i] = dist_[i] > 0 ? 0 : kMaxDistance;
-    }
-    chessboard_transform(to_full, dims_);
-    chessboard_transform(to_empty, dims_);
-    for (std::size_t i = 0; i < dist_.size(); ++i)
-        dist_[i] =
-            dist_[i] > 0 ? static_cast<std::int8_t>(to_full[i]) : static_cast<std::int8_t>(-to_empty[i]);
-}
-
 // One pass per octant, from the far corner of that octant back: the box
 // reaching r ahead of m is m and the boxes reaching r − 1 ahead of its 7
-// neighbours ahead, so D(m) = 1 + min over them (0 where not empty; the
-// grid's outside does not stop a box, which is clipped).
+// neighbours ahead, so D(m) = 1 + min over them, where a neighbour of the
+// other kind (empty or not) counts 0; the grid's outside does not stop a
+// box, which is clipped.
 void EmptySpace::build_ahead(int threads) {
-    const std::size_t n = dist_.size();
+    const std::size_t n = empty_.size();
     ahead_.assign(n * 8, 0);
     const auto& d = dims_;
     auto octant = [&](int o) {
@@ -167,17 +115,18 @@ void EmptySpace::build_ahead(int threads) {
                                                         s[1] > 0 ? d[1] - 1 - yi : yi,
                                                         s[2] > 0 ? d[2] - 1 - zi : zi};
                     const std::size_t i = index(m);
-                    if (dist_[i] <= 0) continue;
-                    int best = 255;
+                    const bool empty = empty_[i] != 0;
+                    int best = kMaxDistance;
                     for (int e = 1; e < 8; ++e) {
                         const std::array<std::int64_t, 3> q{m[0] + ((e & 1) != 0 ? s[0] : 0),
                                                             m[1] + ((e & 2) != 0 ? s[1] : 0),
                                                             m[2] + ((e & 4) != 0 ? s[2] : 0)};
                         if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= d[0] || q[1] >= d[1] || q[2] >= d[2])
                             continue;
-                        best = std::min(best, static_cast<int>(ahead[index(q)]));
+                        const std::size_t k = index(q);  // a neighbour of the other kind stops the box
+                        best = std::min(best, (empty_[k] != 0) == empty ? static_cast<int>(ahead[k]) : 0);
                     }
-                    ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, 255));
+                    ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, kMaxDistance));
                 }
     };
     // the octants are independent: spread them over the threads
@@ -192,10 +141,10 @@ void EmptySpace::build_ahead(int threads) {
 }
 
 double EmptySpace::empty_fraction() const {
-    if (dist_.empty()) return 0.0;
+    if (empty_.empty()) return 0.0;
     std::size_t n = 0;
-    for (auto e : dist_) n += e > 0 ? 1 : 0;
-    return static_cast<double>(n) / static_cast<double>(dist_.size());
+    for (auto e : empty_) n += e;
+    return static_cast<double>(n) / static_cast<double>(empty_.size());
 }
 
 }  // namespace fathom

@@ -74,11 +74,8 @@ public:
     [[nodiscard]] bool any() const { return any_; }
     [[nodiscard]] double empty_fraction() const;
 
-    /// Chebyshev distance, in macrocells, from macrocell m to the nearest
-    /// non-empty one (0: m is not empty; capped at 127): every macrocell
-    /// within distance − 1 of m is empty, so a ray crosses that box of
-    /// macrocells in one step.
-    static constexpr int kMaxDistance = 127;
+    /// The cap of distance_ahead.
+    static constexpr int kMaxDistance = 255;
     /// Macrocells per axis.
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
 
@@ -87,28 +84,18 @@ public:
         return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
     }
     [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m) const {
-        return signed_distance(m) > 0;
+        return empty_[index(m)] != 0;
     }
-    [[nodiscard]] FATHOM_INLINE int distance(const std::array<std::int64_t, 3>& m) const {
-        return std::max(signed_distance(m), 0);
-    }
-    /// distance(m) for an empty macrocell; for a non-empty one, minus the
-    /// Chebyshev distance to the nearest empty one (capped at 127): every
-    /// macrocell within |d| − 1 of m is non-empty (the grid's outside does
-    /// not count as empty).
-    [[nodiscard]] FATHOM_INLINE int signed_distance(const std::array<std::int64_t, 3>& m) const {
-        return dist_[index(m)];
-    }
-    /// For an empty macrocell m, the largest D such that the box from m
-    /// reaching D − 1 macrocells ahead in octant `o` (bit a set: axis a
-    /// goes down) is empty, clipped to the grid (capped at 255); 0 for a
-    /// non-empty one. At least distance(m): a ray leaving m in that octant
-    /// crosses the empty region ahead of it, not only the box around m.
+    /// The largest D such that the box from m reaching D − 1 macrocells
+    /// ahead in octant `o` (bit a set: axis a goes down), clipped to the
+    /// grid, holds only macrocells of m's kind (empty or not; capped at
+    /// kMaxDistance): a ray leaving m in that octant crosses the whole
+    /// region of m's kind ahead of it in one step.
     [[nodiscard]] FATHOM_INLINE int distance_ahead(const std::array<std::int64_t, 3>& m, int o) const {
-        return ahead_[static_cast<std::size_t>(o) * dist_.size() + index(m)];
+        return ahead_[static_cast<std::size_t>(o) * empty_.size() + index(m)];
     }
 
-    /// The box of macrocells within Chebyshev distance r of m, clipped to the grid.
+    /// A box of macrocells.
     struct Box {
         std::array<std::int64_t, 3> lo, hi;  // macrocell indices, inclusive
         [[nodiscard]] FATHOM_INLINE bool contains(const std::array<std::int64_t, 3>& c) const {
@@ -124,15 +111,6 @@ public:
             const bool down = ((o >> a) & 1) != 0;
             b.lo[a] = down ? std::max<std::int64_t>(m[a] - r, 0) : m[a];
             b.hi[a] = down ? m[a] : std::min<std::int64_t>(m[a] + r, dims_[a] - 1);
-        }
-        return b;
-    }
-    /// The box of macrocells within Chebyshev distance r of m, clipped to the grid.
-    [[nodiscard]] FATHOM_INLINE Box box(const std::array<std::int64_t, 3>& m, std::int64_t r) const {
-        Box b;
-        for (int a = 0; a < 3; ++a) {
-            b.lo[a] = std::max<std::int64_t>(m[a] - r, 0);
-            b.hi[a] = std::min<std::int64_t>(m[a] + r, dims_[a] - 1);
         }
         return b;
     }
@@ -158,7 +136,6 @@ private:
     /// Macrocells whose node range [lo, hi] satisfies empty(lo, hi) are empty.
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
-    void build_distance();
     void build_ahead(int threads);
     [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
         return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
@@ -171,8 +148,8 @@ private:
     int shift_ = 3;
     std::array<std::int64_t, 3> nodes_{};
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
-    std::vector<std::int8_t> dist_;       // per macrocell: signed_distance (above)
-    std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like dist_, one per octant
+    std::vector<std::uint8_t> empty_;     // per macrocell: 1 where empty
+    std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like empty_, one per octant
     bool any_ = false;
 };
 
@@ -212,21 +189,21 @@ public:
         octant_back_ = 7 ^ octant_fwd_;
     }
 
-    /// An empty run holds only samples in empty macrocells (verified on the
+    /// A run crosses the box ahead of sample j's macrocell, in the ray's
+    /// octant, that holds only macrocells of its kind (distance_ahead). An
+    /// empty run holds only samples in empty macrocells (verified on the
     /// computed positions). A non-empty run goes to the estimated exit from
-    /// the box of non-empty macrocells around sample j, unverified: a sample
+    /// its box, unverified: a sample
     /// evaluated in an empty macrocell gives (1, 0) anyway, so only the
     /// skipped runs need to be exact. With `exact`, non-empty runs are
     /// verified too: every sample of a run then lies in its box (the
     /// differentiable renderer computes no gradient in empty macrocells).
     Run run(std::int64_t j, int dir, std::int64_t limit, bool exact = false) const {
         const auto m = es_.macrocell(g_.at(j));
-        const int d = es_.signed_distance(m);
-        if (d > 0) {  // the empty region ahead of the ray
-            const int o = dir > 0 ? octant_fwd_ : octant_back_;
-            return {last_in(es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o), j, dir, limit), true};
-        }
-        const EmptySpace::Box b = es_.box(m, -d - 1);
+        const int o = dir > 0 ? octant_fwd_ : octant_back_;
+        // the box ahead of the ray that holds only macrocells of m's kind
+        const EmptySpace::Box b = es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o);
+        if (es_.empty(m)) return {last_in(b, j, dir, limit), true};
         return {exact ? last_in(b, j, dir, limit) : estimated_last(b, j, dir, limit), false};
     }
 
