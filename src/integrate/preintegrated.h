@@ -169,8 +169,8 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
 /// The integrator: samples the n + 1 segment ends once each and composites
 /// the segments. The scalar of a scalar medium is interpolated kBatch ends
 /// at a time with `simd` (the same bits); otherwise a two-slot cache serves
-/// both orders. With `es`, runs of segments whose two ends lie in one empty
-/// macrocell are skipped (exact).
+/// both orders. With `es`, runs of segments whose two ends lie in one box of
+/// empty macrocells are skipped (exact).
 template <Model M, class Medium>
 RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
                                   double h, const Rgb& bg, bool full, const EmptySpace* es,
@@ -248,15 +248,15 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     return composite(
         n, s.order, s.termination, bg, segment,
         [&](std::int64_t i, int dir) -> std::int64_t {
-            if (dir > 0) {  // front ends i−1..k share a macrocell
+            if (dir > 0) {  // front ends i−1..k share a box
                 const auto run = runs.run(i - 1, +1, n);
                 if (run.empty && run.last >= i) return run.last - i + 1;             // segments i..k
                 const std::int64_t m = std::max<std::int64_t>(1, run.last - i + 2);  // segments i..k+1
                 run_end = i + m - 1;
                 return -m;
             }
-            const auto run = runs.run(i, -1, 0);                 // back ends k..i share a macrocell
-            if (run.empty && run.last < i) return i - run.last;  // segments k+1..i
+            const auto run = runs.run(i, -1, 0);                                 // back ends k..i share a box
+            if (run.empty && run.last < i) return i - run.last;                  // segments k+1..i
             const std::int64_t m = std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
             run_end = i - m;
             return -m;

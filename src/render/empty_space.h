@@ -10,15 +10,16 @@
 // A sample inside an empty macrocell gives a segment with transmittance
 // exactly 1 and radiance exactly 0, which leaves both accumulators unchanged
 // bit for bit; so does a pre-integrated segment whose two ends lie in one
-// empty macrocell (the linear ramp between them stays in its range). The
-// integrators therefore skip such runs of samples without changing the
-// image, and keep the uniform segment division of eq. (8): a run ends on the
-// segment grid, at the last sample whose *computed* position still falls
-// into the macrocell. Sample positions p0 + dp·t with t = t_near + x·δ are
-// monotone in x per axis (IEEE rounding is monotone), so the samples
-// between two samples of one macrocell are in it too; the run's end is
-// estimated from the ray's exit from the macrocell's box and then verified
-// on the computed position.
+// box of empty macrocells (the trilinear field is continuous along the
+// segment, which stays in the box, so every value of the ramp between the
+// ends is taken in the box, where the medium is zero). The integrators
+// therefore skip such runs of samples without changing the image, and keep
+// the uniform segment division of eq. (8): a run ends on the segment grid,
+// at the last sample whose *computed* position still falls into the box.
+// Sample positions p0 + dp·t with t = t_near + x·δ are monotone in x per
+// axis (IEEE rounding is monotone), so the samples between two samples of
+// one box are in it too; the run's end is estimated from the ray's exit
+// from the box and then verified on the computed position.
 #pragma once
 
 #include <algorithm>
@@ -193,11 +194,11 @@ public:
     /// octant, that holds only macrocells of its kind (distance_ahead). An
     /// empty run holds only samples in empty macrocells (verified on the
     /// computed positions). A non-empty run goes to the estimated exit from
-    /// its box, unverified: a sample
-    /// evaluated in an empty macrocell gives (1, 0) anyway, so only the
-    /// skipped runs need to be exact. With `exact`, non-empty runs are
-    /// verified too: every sample of a run then lies in its box (the
-    /// differentiable renderer computes no gradient in empty macrocells).
+    /// its box, unverified: a sample evaluated in an empty macrocell gives
+    /// (1, 0) anyway, so only the skipped runs need to be exact. With
+    /// `exact`, non-empty runs are verified too: every sample of a run then
+    /// lies in its box (the differentiable renderer computes no gradient in
+    /// empty macrocells).
     Run run(std::int64_t j, int dir, std::int64_t limit, bool exact = false) const {
         const auto m = es_.macrocell(g_.at(j));
         const int o = dir > 0 ? octant_fwd_ : octant_back_;
