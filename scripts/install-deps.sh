@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
   zlib1g-dev libpng-dev libopenexr-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
-  libnifti2-dev libniftiio-dev libgdcm-dev libopenvdb-dev
+  libnifti2-dev libniftiio-dev libgdcm-dev libopenvdb-dev libboost-dev
   libavformat-dev libavcodec-dev libswscale-dev
   libgtest-dev libbenchmark-dev libhwy-dev
   python3-dev pybind11-dev python3-numpy python3-pytest python3-torch
