@@ -2,6 +2,9 @@
 // (src/integrate/simd_classify.h):
 // every target this CPU runs gives images bit-identical to the scalar path.
 #include <cstring>
+#include <limits>
+#include <random>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -10,6 +13,7 @@
 #include "integrate/simd_classify.h"
 #include "render/empty_space.h"
 #include "synthetic.h"
+#include "volume/sampler.h"
 
 using namespace fathom;
 using fathom::test::make_volume;
@@ -124,4 +128,49 @@ TEST(Simd, ZeroBelowFollowsTheModel) {
     EXPECT_EQ(zero_below(Classifier(t, 1.0), Model::absorption), INFINITY);
     t.alpha_points = {{20, 0.1}, {60, 0.0}};
     EXPECT_EQ(zero_below(Classifier(t, 1.0), Model::absorption), -INFINITY);
+}
+
+// The end samples alone, for every target and sample type, against
+// GridSampler: random values over each type's whole range (the signs of
+// int16), on rays through every region of a small lattice and out of its
+// far corner, where a 4-byte read of the last uint8 row would pass the end.
+TEST(Simd, EndSamplesMatchGridSamplerOverEveryValue) {
+    std::mt19937 rng(11);
+    int compared = 0;
+    for (DType type : {DType::u8, DType::i8, DType::u16, DType::i16, DType::u32, DType::f32}) {
+        Volume v({5, 4, 3}, type);
+        const auto [lo, hi] = visit_dtype(type, []<class T>(T*) {
+            return std::pair<double, double>{std::max<double>(std::numeric_limits<T>::lowest(), -1e6),
+                                             std::min<double>(std::numeric_limits<T>::max(), 1e6)};
+        });
+        std::uniform_real_distribution<double> value(lo, hi);
+        for (std::int64_t k = 0; k < 3; ++k)
+            for (std::int64_t j = 0; j < 4; ++j)
+                for (std::int64_t i = 0; i < 5; ++i) v.set_value(i, j, k, std::round(value(rng)));
+        const simd::BatchSource src{v.bytes(), type, 5, 4, 3, nullptr, nullptr};
+        std::uniform_real_distribution<double> pos(-0.5, 5.5), dir(-1.0, 1.0);
+        for (int r = 0; r < 200; ++r) {
+            simd::RayGrid g;
+            g.p0 = r % 2 == 0 ? Vec3{pos(rng), pos(rng), pos(rng)} : Vec3{4.0, 3.0, 2.0};  // the far corner
+            g.dp = {dir(rng), dir(rng), dir(rng)};
+            g.t_near = 0.0;
+            g.delta = 0.31;
+            g.offset = 0.25;
+            g.first = 0;
+            alignas(64) double got[simd::kBatch];
+            for (auto t : simd::available_targets()) {
+                simd::force_target(t);
+                simd::interpolate_batch(src, g, 0, simd::kBatch, got);
+                for (int l = 0; l < simd::kBatch; ++l) {
+                    const Vec3 p = g.p0 + g.dp * (g.t_near + (l + g.offset) * g.delta);
+                    const double want = visit_dtype(type, [&]<class T>(T*) { return GridSampler<T>(v)(p); });
+                    ASSERT_EQ(got[l], want) << simd::active_target() << " " << dtype_name(type) << " ray "
+                                            << r << " sample " << l;
+                    ++compared;
+                }
+            }
+            simd::force_target(0);
+        }
+    }
+    EXPECT_GE(compared, 6 * 200 * simd::kBatch);
 }

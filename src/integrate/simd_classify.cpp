@@ -3,6 +3,8 @@
 #include "integrate/simd_classify.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <type_traits>
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "integrate/simd_classify.cpp"
@@ -54,6 +56,74 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     }
 }
 
+/// Sample types whose two x-neighbours fit one 32-bit gather.
+template <class T>
+constexpr bool kPairs =
+    std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::uint16_t> || std::is_same_v<T, std::int16_t>;
+/// Byte offsets stay in int32 lanes.
+constexpr std::int64_t kPairBytesMax = std::int64_t{1} << 30;
+
+/// GridSampler::interpolate of vectors of cells and fractions, the corners
+/// gathered in pairs (q[0], q[1]) per row: the same values, the same
+/// operations, so the same bits as the scalar fetch.
+template <class T>
+HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch],
+                             const double (*frac)[kBatch], std::size_t used, double* out) {
+    const D d;
+    const hn::Rebind<std::int32_t, D> di;
+    const hn::Rebind<std::uint32_t, D> du;
+    const std::size_t N = hn::Lanes(d);
+    const auto* words = reinterpret_cast<const std::int32_t*>(src.data);
+    constexpr auto size = static_cast<std::int32_t>(sizeof(T));
+    const std::int32_t sy = static_cast<std::int32_t>(src.nx) * size,
+                       sz = sy * static_cast<std::int32_t>(src.ny);
+    const std::int32_t rows[4] = {0, sy, sz, sz + sy};
+    const auto last_word = hn::Set(di, static_cast<std::int32_t>(src.nx * src.ny * src.nz) - 4);  // u8 only
+    const V nx = hn::Set(d, static_cast<double>(src.nx)), ny = hn::Set(d, static_cast<double>(src.ny));
+    for (std::size_t b = 0; b < used; b += N) {
+        // the cell's first node: an exact integer below 2^30 in doubles
+        const V node =
+            hn::Add(hn::Load(d, cell[0] + b),
+                    hn::Mul(nx, hn::Add(hn::Load(d, cell[1] + b), hn::Mul(ny, hn::Load(d, cell[2] + b)))));
+        const auto off = hn::DemoteTo(di, hn::Mul(node, hn::Set(d, static_cast<double>(size))));
+        V c[8];
+        for (int r = 0; r < 4; ++r) {
+            auto o = hn::Add(off, hn::Set(di, rows[r]));
+            hn::Vec<decltype(du)> w;
+            if constexpr (sizeof(T) == 1) {
+                // 4 bytes from o, moved back where they would pass the end
+                const auto o4 = hn::Min(o, last_word);
+                w = hn::BitCast(du, hn::GatherOffset(di, words, o4));
+                w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(o, o4))));
+            } else {
+                w = hn::BitCast(du, hn::GatherOffset(di, words, o));
+            }
+            hn::Vec<decltype(di)> lo, hi;
+            if constexpr (std::is_same_v<T, std::uint8_t>) {
+                lo = hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFu)));
+                hi = hn::BitCast(di, hn::And(hn::ShiftRight<8>(w), hn::Set(du, 0xFFu)));
+            } else if constexpr (std::is_same_v<T, std::uint16_t>) {
+                lo = hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFFFu)));
+                hi = hn::BitCast(di, hn::ShiftRight<16>(w));
+            } else {  // int16: sign-extended halves
+                lo = hn::ShiftRight<16>(hn::ShiftLeft<16>(hn::BitCast(di, w)));
+                hi = hn::ShiftRight<16>(hn::BitCast(di, w));
+            }
+            c[2 * r] = hn::PromoteTo(d, lo);
+            c[2 * r + 1] = hn::PromoteTo(d, hi);
+        }
+        const V fx = hn::Load(d, frac[0] + b), fy = hn::Load(d, frac[1] + b), fz = hn::Load(d, frac[2] + b);
+        // GridSampler::interpolate
+        const V c00 = hn::Add(c[0], hn::Mul(fx, hn::Sub(c[1], c[0])));
+        const V c10 = hn::Add(c[2], hn::Mul(fx, hn::Sub(c[3], c[2])));
+        const V c01 = hn::Add(c[4], hn::Mul(fx, hn::Sub(c[5], c[4])));
+        const V c11 = hn::Add(c[6], hn::Mul(fx, hn::Sub(c[7], c[6])));
+        const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
+        const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
+        hn::Store(hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0))), d, out + b);
+    }
+}
+
 /// The trilinear scalar (GridSampler's operations) of samples j0 ..
 /// j0 + count − 1, rounded up to whole vectors; returns how many it wrote.
 template <class T>
@@ -85,6 +155,14 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
             const V i = hn::Min(hn::Floor(x), hn::Set(d, last[a]));
             hn::Store(i, d, cell[a] + b);
             hn::Store(hn::Sub(x, i), d, frac[a] + b);
+        }
+    }
+    if constexpr (kPairs<T>) {
+        // Small integer types: each gather fetches a corner and its +x
+        // neighbour at once (4 gathers for 8 corners), in vectors.
+        if (src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
+            pair_corners<T>(src, cell, frac, used, out);
+            return used;
         }
     }
     for (std::size_t b = 0; b < used; ++b) {
