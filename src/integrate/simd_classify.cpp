@@ -56,12 +56,45 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     }
 }
 
-/// Sample types whose two x-neighbours fit one 32-bit gather.
+/// Sample types whose corner pairs (q[0], q[1]) come from one gather: 32
+/// bits for 8- and 16-bit integers, 64 for float32.
 template <class T>
 constexpr bool kPairs =
-    std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::uint16_t> || std::is_same_v<T, std::int16_t>;
-/// Byte offsets stay in int32 lanes.
+    std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::int8_t> || std::is_same_v<T, std::uint16_t> ||
+    std::is_same_v<T, std::int16_t> || std::is_same_v<T, float>;
+/// Byte offsets of 8- and 16-bit samples stay in int32 lanes.
 constexpr std::int64_t kPairBytesMax = std::int64_t{1} << 30;
+
+/// The pair (q[0], q[1]) at byte offsets `o` (int32 lanes) of 8- and 16-bit
+/// samples, as int32 lanes. 8-bit reads that would pass the array's last
+/// word `last` are moved back and the word shifted.
+template <class T, class DI, class VI>
+HWY_INLINE void gather_pair(DI di, const BatchSource& src, VI o, VI last, VI& lo, VI& hi) {
+    const hn::Rebind<std::uint32_t, DI> du;
+    const auto* words = reinterpret_cast<const std::int32_t*>(src.data);
+    hn::Vec<decltype(du)> w;
+    if constexpr (sizeof(T) == 1) {
+        const auto o4 = hn::Min(o, last);
+        w = hn::BitCast(du, hn::GatherOffset(di, words, o4));
+        w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(o, o4))));
+    } else {
+        w = hn::BitCast(du, hn::GatherOffset(di, words, o));
+    }
+    const auto wi = hn::BitCast(di, w);
+    if constexpr (std::is_same_v<T, std::uint8_t>) {
+        lo = hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFu)));
+        hi = hn::BitCast(di, hn::And(hn::ShiftRight<8>(w), hn::Set(du, 0xFFu)));
+    } else if constexpr (std::is_same_v<T, std::int8_t>) {  // sign-extended bytes
+        lo = hn::ShiftRight<24>(hn::ShiftLeft<24>(wi));
+        hi = hn::ShiftRight<24>(hn::ShiftLeft<16>(wi));
+    } else if constexpr (std::is_same_v<T, std::uint16_t>) {
+        lo = hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFFFu)));
+        hi = hn::BitCast(di, hn::ShiftRight<16>(w));
+    } else {  // int16: sign-extended halves
+        lo = hn::ShiftRight<16>(hn::ShiftLeft<16>(wi));
+        hi = hn::ShiftRight<16>(wi);
+    }
+}
 
 /// GridSampler::interpolate of vectors of cells and fractions, the corners
 /// gathered in pairs (q[0], q[1]) per row: the same values, the same
@@ -70,47 +103,41 @@ template <class T>
 HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch],
                              const double (*frac)[kBatch], std::size_t used, double* out) {
     const D d;
-    const hn::Rebind<std::int32_t, D> di;
-    const hn::Rebind<std::uint32_t, D> du;
     const std::size_t N = hn::Lanes(d);
-    const auto* words = reinterpret_cast<const std::int32_t*>(src.data);
-    constexpr auto size = static_cast<std::int32_t>(sizeof(T));
-    const std::int32_t sy = static_cast<std::int32_t>(src.nx) * size,
-                       sz = sy * static_cast<std::int32_t>(src.ny);
-    const std::int32_t rows[4] = {0, sy, sz, sz + sy};
-    const auto last_word = hn::Set(di, static_cast<std::int32_t>(src.nx * src.ny * src.nz) - 4);  // u8 only
+    constexpr std::int64_t size = sizeof(T);
+    const std::int64_t sy = src.nx * size, sz = sy * src.ny;
+    const std::int64_t rows[4] = {0, sy, sz, sz + sy};
     const V nx = hn::Set(d, static_cast<double>(src.nx)), ny = hn::Set(d, static_cast<double>(src.ny));
     for (std::size_t b = 0; b < used; b += N) {
-        // the cell's first node: an exact integer below 2^30 in doubles
+        // the byte offset of the cell's first node: an exact integer in doubles
         const V node =
             hn::Add(hn::Load(d, cell[0] + b),
                     hn::Mul(nx, hn::Add(hn::Load(d, cell[1] + b), hn::Mul(ny, hn::Load(d, cell[2] + b)))));
-        const auto off = hn::DemoteTo(di, hn::Mul(node, hn::Set(d, static_cast<double>(size))));
+        const V bytes = hn::Mul(node, hn::Set(d, static_cast<double>(size)));
         V c[8];
-        for (int r = 0; r < 4; ++r) {
-            auto o = hn::Add(off, hn::Set(di, rows[r]));
-            hn::Vec<decltype(du)> w;
-            if constexpr (sizeof(T) == 1) {
-                // 4 bytes from o, moved back where they would pass the end
-                const auto o4 = hn::Min(o, last_word);
-                w = hn::BitCast(du, hn::GatherOffset(di, words, o4));
-                w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(o, o4))));
-            } else {
-                w = hn::BitCast(du, hn::GatherOffset(di, words, o));
+        if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
+            const hn::Rebind<std::int64_t, D> dl;
+            const hn::Rebind<std::uint64_t, D> dq;
+            const hn::Rebind<std::uint32_t, D> du;
+            const hn::Rebind<float, D> df;
+            const auto* pairs = static_cast<const std::uint64_t*>(src.data);
+            const auto off = hn::ConvertTo(dl, bytes);
+            for (int r = 0; r < 4; ++r) {
+                const auto w = hn::GatherOffset(dq, pairs, hn::Add(off, hn::Set(dl, rows[r])));
+                c[2 * r] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, w)));
+                c[2 * r + 1] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, hn::ShiftRight<32>(w))));
             }
-            hn::Vec<decltype(di)> lo, hi;
-            if constexpr (std::is_same_v<T, std::uint8_t>) {
-                lo = hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFu)));
-                hi = hn::BitCast(di, hn::And(hn::ShiftRight<8>(w), hn::Set(du, 0xFFu)));
-            } else if constexpr (std::is_same_v<T, std::uint16_t>) {
-                lo = hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFFFu)));
-                hi = hn::BitCast(di, hn::ShiftRight<16>(w));
-            } else {  // int16: sign-extended halves
-                lo = hn::ShiftRight<16>(hn::ShiftLeft<16>(hn::BitCast(di, w)));
-                hi = hn::ShiftRight<16>(hn::BitCast(di, w));
+        } else {
+            const hn::Rebind<std::int32_t, D> di;
+            const auto off = hn::DemoteTo(di, bytes);
+            const auto last = hn::Set(di, static_cast<std::int32_t>(src.nx * src.ny * src.nz * size - 4));
+            for (int r = 0; r < 4; ++r) {
+                hn::Vec<decltype(di)> lo, hi;
+                gather_pair<T>(di, src, hn::Add(off, hn::Set(di, static_cast<std::int32_t>(rows[r]))), last,
+                               lo, hi);
+                c[2 * r] = hn::PromoteTo(d, lo);
+                c[2 * r + 1] = hn::PromoteTo(d, hi);
             }
-            c[2 * r] = hn::PromoteTo(d, lo);
-            c[2 * r + 1] = hn::PromoteTo(d, hi);
         }
         const V fx = hn::Load(d, frac[0] + b), fy = hn::Load(d, frac[1] + b), fz = hn::Load(d, frac[2] + b);
         // GridSampler::interpolate
@@ -158,9 +185,10 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
         }
     }
     if constexpr (kPairs<T>) {
-        // Small integer types: each gather fetches a corner and its +x
-        // neighbour at once (4 gathers for 8 corners), in vectors.
-        if (src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
+        // Each gather fetches a corner and its +x neighbour at once (4
+        // gathers for 8 corners), in vectors.
+        if (sizeof(T) == 4 ||
+            src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
             pair_corners<T>(src, cell, frac, used, out);
             return used;
         }
