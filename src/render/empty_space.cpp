@@ -78,6 +78,7 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     EmptySpace es;
     es.shift_ = shift;
     es.nodes_ = v.dims();
+    for (int a = 0; a < 3; ++a) es.node_hi_[a] = static_cast<double>(es.nodes_[a] - 1);
     es.dims_ = macro_dims(v, shift);
     es.empty_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
     es.any_ = std::find(es.empty_.begin(), es.empty_.end(), std::uint8_t{1}) != es.empty_.end();

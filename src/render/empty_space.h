@@ -116,21 +116,10 @@ public:
         return b;
     }
 
-    /// The ray parameter where the ray leaves (dir = +1) or enters
-    /// (dir = −1) box b; inv_dp = 1/dp per axis (an estimate: callers
-    /// verify on computed positions).
-    [[nodiscard]] FATHOM_INLINE double box_exit(const RaySpan& sp, const Vec3& inv_dp, const Box& b,
-                                                int dir) const {
-        double t = dir > 0 ? INFINITY : -INFINITY;
-        for (int a = 0; a < 3; ++a) {
-            if (sp.dp[a] == 0.0) continue;
-            const double lo = static_cast<double>(b.lo[a] << shift_);
-            const double hi = static_cast<double>(std::min((b.hi[a] + 1) << shift_, nodes_[a] - 1));
-            const bool up = (sp.dp[a] > 0.0) == (dir > 0);
-            const double ta = ((up ? hi : lo) - sp.p0[a]) * inv_dp[a];
-            t = dir > 0 ? std::min(t, ta) : std::max(t, ta);
-        }
-        return t;
+    /// The node coordinate of box b's face on axis a: the far one (up) or
+    /// the near one, clipped to the lattice.
+    [[nodiscard]] FATHOM_INLINE double box_face(const Box& b, int a, bool up) const {
+        return static_cast<double>(up ? std::min((b.hi[a] + 1) << shift_, nodes_[a] - 1) : b.lo[a] << shift_);
     }
 
 private:
@@ -142,12 +131,13 @@ private:
         return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
     }
     [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
-        const double x = std::clamp(p, 0.0, static_cast<double>(nodes_[a] - 1));
+        const double x = std::clamp(p, 0.0, node_hi_[a]);
         return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
     }
 
     int shift_ = 3;
     std::array<std::int64_t, 3> nodes_{};
+    std::array<double, 3> node_hi_{};     // nodes_ − 1
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
     std::vector<std::uint8_t> empty_;     // per macrocell: 1 where empty
     std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like empty_, one per octant
@@ -180,14 +170,26 @@ public:
         bool empty;         // the macrocell is empty
     };
 
-    RunFinder(const EmptySpace& es, SampleGrid grid)
-        : es_(es),
-          g_(grid),
-          inv_dp_{1.0 / grid.span->dp.x, 1.0 / grid.span->dp.y, 1.0 / grid.span->dp.z},
-          inv_delta_(1.0 / grid.delta) {
+    RunFinder(const EmptySpace& es, SampleGrid grid) : es_(es), g_(grid) {
         for (int a = 0; a < 3; ++a)  // the octant a ray travels in: forward, and backward
             if (grid.span->dp[a] < 0.0) octant_fwd_ |= 1 << a;
         octant_back_ = 7 ^ octant_fwd_;
+        // The fractional sample index where the ray crosses node coordinate
+        // f on axis a, f·A + B (the inverse of SampleGrid::at along a);
+        // axes the ray does not cross (or hardly) never bound a run.
+        const RaySpan& sp = *grid.span;
+        for (int a = 0; a < 3; ++a) {
+            const double A = 1.0 / (sp.dp[a] * grid.delta);
+            const bool crosses = std::isfinite(A);
+            for (int d = 0; d < 2; ++d) {  // d = 0: forward, 1: backward
+                Axis& ax = axes_[d][a];
+                ax.up = (sp.dp[a] > 0.0) == (d == 0);
+                ax.A = crosses ? A : 0.0;
+                ax.B = crosses ? (-sp.p0[a] / sp.dp[a] - sp.t_near) / grid.delta - grid.offset +
+                                     static_cast<double>(grid.first)
+                               : (d == 0 ? INFINITY : -INFINITY);
+            }
+        }
     }
 
     /// A run crosses the box ahead of sample j's macrocell, in the ray's
@@ -210,17 +212,23 @@ public:
 
 private:
     // The estimated farthest index from j towards limit whose position is in
-    // box b (sample j is in it), within [j, limit].
+    // box b (sample j is in it), within [j, limit]: where the ray leaves the
+    // box (an estimate: callers verify on computed positions where it
+    // matters).
     [[nodiscard]] FATHOM_INLINE std::int64_t estimated_last(const EmptySpace::Box& b, std::int64_t j, int dir,
                                                             std::int64_t limit) const {
-        const double tb = es_.box_exit(*g_.span, inv_dp_, b, dir);
-        // the fractional index of the box exit (inverse of SampleGrid::t)
-        double x = (tb - g_.span->t_near) * inv_delta_ - g_.offset + static_cast<double>(g_.first);
+        const auto& ax = axes_[dir > 0 ? 0 : 1];
+        double x = dir > 0 ? INFINITY : -INFINITY;
+        for (int a = 0; a < 3; ++a) {
+            const double xa = es_.box_face(b, a, ax[a].up) * ax[a].A + ax[a].B;
+            x = dir > 0 ? std::min(x, xa) : std::max(x, xa);
+        }
         if (!std::isfinite(x)) return limit;
-        x = dir > 0 ? std::floor(x) : std::ceil(x);
         const double lo = static_cast<double>(std::min(j, limit)),
                      hi = static_cast<double>(std::max(j, limit));
-        return static_cast<std::int64_t>(std::clamp(x, lo, hi));
+        x = std::clamp(x, lo, hi);  // ≥ 0: truncation is floor
+        const auto k = static_cast<std::int64_t>(x);
+        return dir > 0 ? k : k + static_cast<std::int64_t>(static_cast<double>(k) < x);  // floor, ceil
     }
     // The farthest index from j towards limit whose position is in box b
     // (sample j is in it).
@@ -232,10 +240,13 @@ private:
         return k;
     }
 
+    struct Axis {
+        double A, B;  // the fractional index at node coordinate f: f·A + B
+        bool up;      // the run leaves through the box's far face on this axis
+    };
     const EmptySpace& es_;
     SampleGrid g_;
-    Vec3 inv_dp_;
-    double inv_delta_;
+    std::array<std::array<Axis, 3>, 2> axes_{};  // forward, backward
     int octant_fwd_ = 0, octant_back_ = 7;
 };
 
