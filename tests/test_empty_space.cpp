@@ -346,3 +346,35 @@ TEST(EmptySpace, SkippedRunsHoldOnlySamplesInEmptyMacrocells) {
     EXPECT_EQ(checked_rays, 300);
     EXPECT_GT(skipped, 100000);
 }
+
+// Pre-integrated segments between two empty macrocells of different boxes
+// are skipped only where every empty range lies in one zero interval
+// (EmptySpace::joins_empty). Two zero bands, v ≤ 0.2 and v ≥ 0.6, with σ > 0
+// between, on slabs of 0.1 and 0.9 with a sharp step: segments longer than a
+// macrocell join a 0.1 end to a 0.9 end across the non-empty step, and
+// their ramps cross the band where σ > 0.
+TEST(EmptySpace, SegmentsJoinEmptyMacrocellsOnlyWithinOneZeroInterval) {
+    const Volume slabs = make_volume(41, 23, 19, [](double x, double y, double) {
+        return std::fmod(x + 0.3 * y, 14.0) < 7.0 ? 0.1 : 0.9;
+    });
+    TransferFunction two;
+    two.alpha_kind = TransferFunction::Alpha::extinction;
+    two.alpha_points = {{0.0, 0.0}, {0.2, 0.0}, {0.3, 1.5}, {0.5, 1.5}, {0.6, 0.0}, {1.0, 0.0}};
+    two.color_points = {{0.0, {0.9, 0.4, 0.1}}, {1.0, {0.1, 0.5, 0.9}}};
+    const Classifier c_two(two, 1.0), c_blob(blob_tf(), 1.0);
+    const EmptySpace es_two = EmptySpace::for_scalar(slabs, c_two, Model::emission_absorption, 2, 1);
+    ASSERT_TRUE(es_two.any());
+    EXPECT_FALSE(es_two.joins_empty());  // empty ranges in both bands
+    EXPECT_TRUE(EmptySpace::for_scalar(slabs, c_blob, Model::emission_absorption, 2, 1).joins_empty());
+    EXPECT_TRUE(EmptySpace::for_density(slabs, 2, 1).joins_empty());
+    int compared = 0;
+    for (IntegratorKind k : {IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple})
+        for (Order o : {Order::front_to_back, Order::back_to_front})
+            for (double step : {5.3, 9.1}) {
+                RenderSettings s = base(k, Model::emission_absorption, o);
+                s.step = step;
+                EXPECT_EQ(compare_scalar(slabs, two, s), 0) << to_string(k) << " step " << step;
+                ++compared;
+            }
+    EXPECT_EQ(compared, 8);
+}

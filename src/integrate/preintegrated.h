@@ -242,21 +242,28 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     DepthTrack depth{span.t_near, delta};
     DepthTrack* track = s.depth_outputs ? &depth : nullptr;
     if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
-    // Segments whose two ends lie in one empty macrocell are (1, 0); those
-    // with an end in a non-empty one are evaluated without further lookups.
+    // Segments whose two ends lie in one box of empty macrocells are (1, 0);
+    // those with an end in a non-empty one are evaluated without further
+    // lookups.
+    // Where empty macrocells join (EmptySpace::joins_empty), ends in
+    // different boxes of them bound empty segments too.
     const RunFinder runs(*es, grid);
+    const bool joins = es->joins_empty();
+    auto find = [&](std::int64_t j, int dir, std::int64_t limit) {
+        return joins ? runs.run_through(j, dir, limit) : runs.run(j, dir, limit);
+    };
     return composite(
         n, s.order, s.termination, bg, segment,
         [&](std::int64_t i, int dir) -> std::int64_t {
-            if (dir > 0) {  // front ends i−1..k share a box
-                const auto run = runs.run(i - 1, +1, n);
+            if (dir > 0) {  // front ends i−1..k share a box (or join)
+                const auto run = find(i - 1, +1, n);
                 if (run.empty && run.last >= i) return run.last - i + 1;             // segments i..k
                 const std::int64_t m = std::max<std::int64_t>(1, run.last - i + 2);  // segments i..k+1
                 run_end = i + m - 1;
                 return -m;
             }
-            const auto run = runs.run(i, -1, 0);                                 // back ends k..i share a box
-            if (run.empty && run.last < i) return i - run.last;                  // segments k+1..i
+            const auto run = find(i, -1, 0);                     // back ends k..i share a box (or join)
+            if (run.empty && run.last < i) return i - run.last;  // segments k+1..i
             const std::int64_t m = std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
             run_end = i - m;
             return -m;

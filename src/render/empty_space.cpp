@@ -88,12 +88,22 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
 
 EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads) {
     if (m != Model::emission_absorption && m != Model::absorption && m != Model::emission) return {};
-    return from_ranges(v, shift, threads,
-                       [&](double lo, double hi) { return medium_zero_on(tf, m, lo, hi); });
+    const double e = zero_below(tf, m);
+    std::atomic<bool> above{false};  // an empty macrocell reaches E or beyond
+    EmptySpace es = from_ranges(v, shift, threads, [&](double lo, double hi) {
+        const bool empty = medium_zero_on(tf, m, lo, hi);
+        if (empty && !(hi < e)) above.store(true, std::memory_order_relaxed);
+        return empty;
+    });
+    es.joins_empty_ = !above.load();
+    return es;
 }
 
 EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads) {
-    return from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
+    EmptySpace es =
+        from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
+    es.joins_empty_ = true;  // σ = 0 at both ends: σ and σ·c are 0 along the segment
+    return es;
 }
 
 // One pass per octant, from the far corner of that octant back: the box

@@ -12,7 +12,10 @@
 // bit for bit; so does a pre-integrated segment whose two ends lie in one
 // box of empty macrocells (the trilinear field is continuous along the
 // segment, which stays in the box, so every value of the ramp between the
-// ends is taken in the box, where the medium is zero). The integrators
+// ends is taken in the box, where the medium is zero; and where every
+// empty macrocell's range lies in one interval of zero medium,
+// joins_empty(), it is enough that both ends lie in empty macrocells: the
+// ramp between them stays in that interval). The integrators
 // therefore skip such runs of samples without changing the image, and keep
 // the uniform segment division of eq. (8): a run ends on the segment grid,
 // at the last sample whose *computed* position still falls into the box.
@@ -73,6 +76,12 @@ public:
 
     /// True when at least one macrocell is empty (else skipping is pointless).
     [[nodiscard]] bool any() const { return any_; }
+    /// True when every empty macrocell's range lies in one interval of
+    /// scalars where the medium is zero (below zero_below's E; for
+    /// pre-classified grids, density 0): then a linear ramp between two
+    /// samples in empty macrocells, in one box or not, stays in that
+    /// interval, and a pre-integrated segment between them is empty too.
+    [[nodiscard]] bool joins_empty() const { return joins_empty_; }
     [[nodiscard]] double empty_fraction() const;
 
     /// The cap of distance_ahead.
@@ -142,6 +151,7 @@ private:
     std::vector<std::uint8_t> empty_;     // per macrocell: 1 where empty
     std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like empty_, one per octant
     bool any_ = false;
+    bool joins_empty_ = false;
 };
 
 /// Sample positions on the segment grid: index j sits at
@@ -208,6 +218,22 @@ public:
         const EmptySpace::Box b = es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o);
         if (es_.empty(m)) return {last_in(b, j, dir, limit), true};
         return {exact ? last_in(b, j, dir, limit) : estimated_last(b, j, dir, limit), false};
+    }
+
+    /// As run(), but an empty run goes on through the boxes of empty
+    /// macrocells that follow it: each of its samples lies in an empty
+    /// macrocell, though not all in one box.
+    Run run_through(std::int64_t j, int dir, std::int64_t limit) const {
+        const Run r = run(j, dir, limit);
+        if (!r.empty) return r;
+        const int o = dir > 0 ? octant_fwd_ : octant_back_;
+        std::int64_t k = r.last;
+        while (k != limit) {
+            const auto m = es_.macrocell(g_.at(k + dir));
+            if (!es_.empty(m)) break;
+            k = last_in(es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o), k + dir, dir, limit);
+        }
+        return {k, true};
     }
 
 private:
