@@ -174,3 +174,19 @@ TEST(Simd, EndSamplesMatchGridSamplerOverEveryValue) {
     }
     EXPECT_GE(compared, 6 * 200 * simd::kBatch);
 }
+
+// The skip convention of composite() over a batch's zero lanes, both ways.
+TEST(Simd, SplitZeroCountsRunsOfZeroLanes) {
+    const std::uint32_t z = 0b0000'1111'0000'0110;  // lanes 1, 2 and 8..11 zero
+    EXPECT_EQ(simd::split_zero(z, 0, +1, 16), -1);
+    EXPECT_EQ(simd::split_zero(z, 1, +1, 16), 2);
+    EXPECT_EQ(simd::split_zero(z, 1, +1, 1), 1);    // no further than avail
+    EXPECT_EQ(simd::split_zero(z, 3, +1, 16), -5);  // lanes 3..7
+    EXPECT_EQ(simd::split_zero(z, 3, +1, 2), -2);
+    EXPECT_EQ(simd::split_zero(z, 12, +1, 4), -4);
+    EXPECT_EQ(simd::split_zero(z, 11, -1, 16), 4);  // lanes 11..8
+    EXPECT_EQ(simd::split_zero(z, 7, -1, 16), -5);  // lanes 7..3
+    EXPECT_EQ(simd::split_zero(z, 2, -1, 16), 2);   // lanes 2, 1
+    EXPECT_EQ(simd::split_zero(z, 0, -1, 1), -1);
+    EXPECT_EQ(simd::split_zero(z, 15, -1, 3), -3);
+}

@@ -64,6 +64,32 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
     // Samples in an empty macrocell give (1, 0): skip each run of them;
     // evaluate each run in a non-empty one without further lookups.
     const RunFinder runs(*es, grid);
+    if constexpr (Medium::kHasScalar && !Medium::kShaded) {
+        if (acc.simd != nullptr) {
+            // With SIMD, a run in a non-empty macrocell is classified a batch
+            // at a time, and the samples there whose scalar lies below the
+            // medium's zero range (BatchOut::zero) are (1, 0) too: skipped.
+            bool in_run = false;  // i lies in the evaluated run ending at run_end
+            return composite(
+                n, s.order, s.termination, bg, segment,
+                [&](std::int64_t i, int dir) -> std::int64_t {
+                    if (!in_run || dir * (run_end - i) < 0) {
+                        const auto run = runs.run(i, dir, dir > 0 ? n : 1);
+                        if (run.empty) return dir * (run.last - i) + 1;
+                        run_end = run.last;
+                        in_run = true;
+                    }
+                    if (!win.holds(i)) {
+                        win.start_at(i, dir > 0, run_end);
+                        simd::classify_batch(*acc.simd, rg, win.b0, win.count(), batch);
+                    }
+                    return simd::split_zero(
+                        batch.zero, i - win.b0, dir,
+                        dir > 0 ? std::min(win.b1, run_end) - i + 1 : i - std::max(win.b0, run_end) + 1);
+                },
+                track);
+        }
+    }
     return composite(
         n, s.order, s.termination, bg, segment,
         [&](std::int64_t i, int dir) {

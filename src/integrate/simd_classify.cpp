@@ -228,9 +228,14 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
     std::size_t used = 0;
     visit_dtype(src.type, [&]<class T>(T*) { used = interpolate_typed<T>(src, ray, j0, count, values); });
     const V zero_below = hn::Set(d, src.zero_below);
+    out.zero = 0;
     for (std::size_t b = 0; b < used; b += hn::Lanes(d)) {
         const V v = hn::Load(d, values + b);
-        if (hn::AllTrue(d, hn::Lt(v, zero_below))) {  // the medium is zero: σ = 0 and g = 0 downstream
+        const auto below = hn::Lt(v, zero_below);
+        std::uint8_t bits[8] = {};
+        hn::StoreMaskBits(d, below, bits);  // N ≤ 8 lanes of doubles
+        out.zero |= static_cast<std::uint32_t>(bits[0]) << b;
+        if (hn::AllTrue(d, below)) {  // the medium is zero: σ = 0 and g = 0 downstream
             hn::Store(hn::Zero(d), d, out.sigma + b);
             for (int k = 0; k < 3; ++k) hn::Store(hn::Zero(d), d, out.color[k] + b);
             continue;

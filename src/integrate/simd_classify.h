@@ -11,6 +11,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -75,7 +76,21 @@ struct Window {
 struct BatchOut {
     alignas(64) double sigma[kBatch];
     alignas(64) double color[3][kBatch];
+    /// Bit l set: sample j0 + l is below BatchSource::zero_below, so the
+    /// medium is exactly zero there under the frame's model.
+    std::uint32_t zero = 0;
 };
+
+/// The samples from lane l of a batch, in direction dir (±1), at most
+/// `avail` of them: k > 0 when the first k are zero (bit set in `zero`),
+/// −k when the first k are not (the skip convention of composite()).
+inline std::int64_t split_zero(std::uint32_t zero, std::int64_t l, int dir, std::int64_t avail) {
+    const auto run = [&](std::uint32_t bits) {  // leading set bits from l in direction dir
+        return dir > 0 ? std::countr_one(bits >> l) : std::countl_one(bits << (31 - l));
+    };
+    const std::int64_t z = std::min<std::int64_t>(run(zero), avail);
+    return z > 0 ? z : -std::min<std::int64_t>(run(~zero), avail);
+}
 
 FlatFunction flatten(const PiecewiseLinear<1>& f);
 FlatFunction flatten(const PiecewiseLinear<3>& f);
