@@ -252,23 +252,56 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     auto find = [&](std::int64_t j, int dir, std::int64_t limit) {
         return joins ? runs.run_through(j, dir, limit) : runs.run(j, dir, limit);
     };
-    return composite(
-        n, s.order, s.termination, bg, segment,
-        [&](std::int64_t i, int dir) -> std::int64_t {
-            if (dir > 0) {  // front ends i−1..k share a box (or join)
-                const auto run = find(i - 1, +1, n);
-                if (run.empty && run.last >= i) return run.last - i + 1;             // segments i..k
-                const std::int64_t m = std::max<std::int64_t>(1, run.last - i + 2);  // segments i..k+1
-                run_end = i + m - 1;
-                return -m;
-            }
-            const auto run = find(i, -1, 0);                     // back ends k..i share a box (or join)
-            if (run.empty && run.last < i) return i - run.last;  // segments k+1..i
-            const std::int64_t m = std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
-            run_end = i - m;
+    // The next run of segments from i: k > 0 to skip, −k to evaluate
+    // (composite's convention); sets run_end, the last end it needs.
+    auto next_run = [&](std::int64_t i, int dir) -> std::int64_t {
+        if (dir > 0) {  // front ends i−1..k share a box (or join)
+            const auto run = find(i - 1, +1, n);
+            if (run.empty && run.last >= i) return run.last - i + 1;             // segments i..k
+            const std::int64_t m = std::max<std::int64_t>(1, run.last - i + 2);  // segments i..k+1
+            run_end = i + m - 1;
             return -m;
-        },
-        track);
+        }
+        const auto run = find(i, -1, 0);                     // back ends k..i share a box (or join)
+        if (run.empty && run.last < i) return i - run.last;  // segments k+1..i
+        const std::int64_t m = std::max<std::int64_t>(1, i - run.last + 1);  // segments k..i
+        run_end = i - m;
+        return -m;
+    };
+    if constexpr (Medium::kHasScalar && !Medium::kShaded) {
+        if (simd != nullptr) {
+            // With SIMD, an evaluated run is split by its batch of ends: a
+            // segment whose two ends both lie below the medium's zero range
+            // has a ramp in that range, so it is (1, 0): skipped too.
+            std::int64_t seg_end = 0;  // the evaluated run's last segment
+            bool in_run = false;
+            std::uint32_t below = 0;  // bit l: end win.b0 + l is below zero_below
+            return composite(
+                n, s.order, s.termination, bg, segment,
+                [&](std::int64_t i, int dir) -> std::int64_t {
+                    if (!in_run || dir * (seg_end - i) < 0) {
+                        const std::int64_t k = next_run(i, dir);
+                        if (k > 0) return k;
+                        seg_end = i + dir * (-k - 1);
+                        in_run = true;
+                    }
+                    const std::int64_t first = dir > 0 ? i - 1 : i;  // segment i's ends i − 1, i
+                    if (!win.holds(i - 1) || !win.holds(i)) {
+                        win.start_at(first, dir > 0, run_end);
+                        simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
+                        below = 0;
+                        for (int l = 0; l < win.count(); ++l)
+                            below |= static_cast<std::uint32_t>(batch[l] < simd->zero_below) << l;
+                    }
+                    // bit p: segment win.b0 + p + 1 (ends p, p + 1) is zero
+                    return simd::split_zero(
+                        below & (below >> 1), i - 1 - win.b0, dir,
+                        dir > 0 ? std::min(win.b1, seg_end) - i + 1 : i - std::max(win.b0 + 1, seg_end) + 1);
+                },
+                track);
+        }
+    }
+    return composite(n, s.order, s.termination, bg, segment, next_run, track);
 }
 
 }  // namespace fathom
