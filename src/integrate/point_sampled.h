@@ -35,13 +35,14 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
     // The far end of the run being evaluated (set by the skipping walk):
     // batches stop there, since what follows may be skipped.
     std::int64_t run_end = s.order == Order::front_to_back ? n : 1;
+    auto load_window = [&](std::int64_t i) {  // the batch from i in the direction of travel
+        win.start_at(i, s.order == Order::front_to_back, run_end);
+        simd::classify_batch(*acc.simd, rg, win.b0, win.count(), batch);
+    };
     auto sample = [&](std::int64_t i) -> MediumSample {
         if constexpr (Medium::kHasScalar) {
             if (acc.simd != nullptr) {
-                if (!win.holds(i)) {
-                    win.start_at(i, s.order == Order::front_to_back, run_end);
-                    simd::classify_batch(*acc.simd, rg, win.b0, win.count(), batch);
-                }
+                if (!win.holds(i)) load_window(i);
                 const auto l = static_cast<std::size_t>(i - win.b0);
                 MediumSample m{batch.sigma[l], {batch.color[0][l], batch.color[1][l], batch.color[2][l]}};
                 if (!medium.tf->associated())  // as ScalarMedium::classify
@@ -79,10 +80,7 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
                         run_end = run.last;
                         in_run = true;
                     }
-                    if (!win.holds(i)) {
-                        win.start_at(i, dir > 0, run_end);
-                        simd::classify_batch(*acc.simd, rg, win.b0, win.count(), batch);
-                    }
+                    if (!win.holds(i)) load_window(i);
                     return simd::split_zero(
                         batch.zero, i - win.b0, dir,
                         dir > 0 ? std::min(win.b1, run_end) - i + 1 : i - std::max(win.b0, run_end) + 1);

@@ -188,13 +188,21 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     alignas(64) double batch[simd::kBatch];
     simd::Window win;
     std::int64_t run_end = s.order == Order::front_to_back ? n : 0;
+    std::uint32_t below = 0;  // bit l: end win.b0 + l is below simd->zero_below
+    // The batch of ends from j in the direction of travel; with `mask`, also
+    // which of them lie below the medium's zero range (the skipping walk's).
+    auto load_window = [&](std::int64_t j, bool mask) {
+        win.start_at(j, s.order == Order::front_to_back, run_end);
+        simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
+        below = 0;
+        if (mask)
+            for (int l = 0; l < win.count(); ++l)
+                below |= static_cast<std::uint32_t>(batch[l] < simd->zero_below) << l;
+    };
     auto end = [&](std::int64_t j) -> End {
         if constexpr (Medium::kHasScalar) {
             if (simd != nullptr) {
-                if (!win.holds(j)) {
-                    win.start_at(j, s.order == Order::front_to_back, run_end);
-                    simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
-                }
+                if (!win.holds(j)) load_window(j, false);
                 return batch[j - win.b0];
             }
         }
@@ -275,7 +283,6 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             // has a ramp in that range, so it is (1, 0): skipped too.
             std::int64_t seg_end = 0;  // the evaluated run's last segment
             bool in_run = false;
-            std::uint32_t below = 0;  // bit l: end win.b0 + l is below zero_below
             return composite(
                 n, s.order, s.termination, bg, segment,
                 [&](std::int64_t i, int dir) -> std::int64_t {
@@ -285,14 +292,8 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
                         seg_end = i + dir * (-k - 1);
                         in_run = true;
                     }
-                    const std::int64_t first = dir > 0 ? i - 1 : i;  // segment i's ends i − 1, i
-                    if (!win.holds(i - 1) || !win.holds(i)) {
-                        win.start_at(first, dir > 0, run_end);
-                        simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
-                        below = 0;
-                        for (int l = 0; l < win.count(); ++l)
-                            below |= static_cast<std::uint32_t>(batch[l] < simd->zero_below) << l;
-                    }
+                    if (!win.holds(i - 1) || !win.holds(i))
+                        load_window(dir > 0 ? i - 1 : i, true);  // ends i − 1, i
                     // bit p: segment win.b0 + p + 1 (ends p, p + 1) is zero
                     return simd::split_zero(
                         below & (below >> 1), i - 1 - win.b0, dir,
