@@ -18,6 +18,10 @@ struct RaySpan {
     /// Jitter: where in its segment the point-sampled quadratures sample
     /// (fraction in [0, 1)), or < 0 to follow the sample_point setting.
     double sample_offset = -1.0;
+    /// Every point of the ray in (or within PixelBounds::kMargin of) a
+    /// non-empty macrocell has t in [occupied_lo, occupied_hi]
+    /// (render/empty_space.h); the defaults bound nothing.
+    double occupied_lo = -INFINITY, occupied_hi = INFINITY;
     [[nodiscard]] Vec3 at(double t) const { return p0 + dp * t; }
     [[nodiscard]] double length() const { return t_far - t_near; }
 };

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <limits>
+#include <numbers>
 #include <thread>
 
 namespace fathom {
@@ -83,7 +85,29 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.empty_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
     es.any_ = std::find(es.empty_.begin(), es.empty_.end(), std::uint8_t{1}) != es.empty_.end();
     es.build_ahead(resolve_threads(threads));
+    es.find_border();
     return es;
+}
+
+void EmptySpace::find_border() {
+    const auto& d = dims_;
+    border_.clear();
+    if (!any_) return;
+    for (std::int64_t z = 0; z < d[2]; ++z)
+        for (std::int64_t y = 0; y < d[1]; ++y)
+            for (std::int64_t x = 0; x < d[0]; ++x) {
+                const std::array<std::int64_t, 3> m{x, y, z};
+                const std::size_t i = index(m);
+                if (empty_[i] != 0) continue;
+                bool border = false;
+                for (int a = 0; a < 3 && !border; ++a)
+                    for (int s = -1; s <= 1 && !border; s += 2) {
+                        auto q = m;
+                        q[a] += s;
+                        border = q[a] < 0 || q[a] >= d[a] || empty_[index(q)] != 0;
+                    }
+                if (border) border_.push_back(static_cast<std::uint32_t>(i));
+            }
 }
 
 EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads) {
@@ -149,6 +173,168 @@ void EmptySpace::build_ahead(int threads) {
     for (int i = 1; i < std::min(threads, 8); ++i) pool.emplace_back(worker);
     worker();
     for (auto& t : pool) t.join();
+}
+
+namespace {
+
+/// A border macrocell's box as the image sees it: the pixels whose rays may
+/// meet it and bounds on t there.
+struct Footprint {
+    int x0, x1, y0, y1;  // inclusive pixel rectangle, clipped to the image
+    float lo, hi;
+};
+
+/// x rounded to a float no larger (down) or no smaller (up).
+float round_float(double x, bool down) {
+    const auto f = static_cast<float>(x);
+    if (down && static_cast<double>(f) > x) return std::nextafter(f, -INFINITY);
+    if (!down && static_cast<double>(f) < x) return std::nextafter(f, INFINITY);
+    return f;
+}
+
+/// Runs f(begin, end) over [0, n) in `threads` contiguous chunks.
+template <class F>
+void parallel_chunks(std::int64_t n, int threads, F&& f) {
+    const int nt = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(threads, n)));
+    std::vector<std::thread> pool;
+    for (int i = 1; i < nt; ++i) pool.emplace_back([&, i] { f(n * i / nt, n * (i + 1) / nt); });
+    f(0, n / nt);
+    for (auto& t : pool) t.join();
+}
+
+}  // namespace
+
+PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
+                                     const Vec3& origin, int threads) const {
+    PixelBounds out;
+    if (!any_ || width <= 0 || height <= 0) return out;
+    const Vec3 basis[3] = {camera.right, camera.up, camera.forward};
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(dot(basis[a], basis[a]) - 1.0) > 1e-12) return out;
+        if (std::abs(dot(basis[a], basis[(a + 1) % 3])) > 1e-12) return out;
+    }
+    // Camera coordinates (along right, up, forward) of lattice point q:
+    // c0 + Σ_a q_a·col[a].
+    const Vec3 c0{dot(origin - camera.position, basis[0]), dot(origin - camera.position, basis[1]),
+                  dot(origin - camera.position, basis[2])};
+    Vec3 col[3];
+    for (int a = 0; a < 3; ++a) {
+        const Vec3 e = axes.column(a);
+        col[a] = {dot(e, basis[0]), dot(e, basis[1]), dot(e, basis[2])};
+    }
+    const double m = PixelBounds::kMargin;
+    auto corner = [&](const std::array<double, 3>& lo, const std::array<double, 3>& hi, int k) {
+        Vec3 c = c0;
+        for (int a = 0; a < 3; ++a) c += col[a] * (((k >> a) & 1) != 0 ? hi[a] : lo[a]);
+        return c;
+    };
+    const bool perspective = camera.projection == Projection::perspective;
+    // The whole lattice, widened, must lie in front of the camera (no ray
+    // starts inside it); its diagonal scales the slack on t.
+    double extent = 0.0;
+    {
+        std::array<double, 3> lo{}, hi{};
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = -m;
+            hi[a] = static_cast<double>(nodes_[a] - 1) + m;
+        }
+        for (int k = 0; k < 8; ++k) {
+            const Vec3 c = corner(lo, hi, k);
+            if (!(c.z > 0.0)) return out;
+            extent = std::max(extent, length(c));
+        }
+    }
+    const double slack = 1e-6 * extent;  // far above the rounding of t here and in the integrators
+    const double aspect = static_cast<double>(width) / height;
+    const double tan_half = std::tan(camera.fov_y_deg * std::numbers::pi / 360.0);
+    // Pixel coordinates of a point in camera coordinates: Camera::generate
+    // solved for (px, py).
+    auto pixel = [&](const Vec3& c, double& px, double& py) {
+        const double x = perspective ? c.x / (c.z * tan_half) : c.x / (camera.height / 2.0);
+        const double y = perspective ? c.y / (c.z * tan_half) : c.y / (camera.height / 2.0);
+        px = (x / aspect + 1.0) * width / 2.0 - 0.5;
+        py = (1.0 - y) * height / 2.0 - 0.5;
+    };
+    std::vector<Footprint> boxes(border_.size());
+    std::vector<std::uint8_t> seen(border_.size());
+    parallel_chunks(static_cast<std::int64_t>(border_.size()), resolve_threads(threads),
+                    [&](std::int64_t b0, std::int64_t b1) {
+                        for (std::int64_t b = b0; b < b1; ++b) {
+                            std::int64_t i = border_[static_cast<std::size_t>(b)];
+                            std::array<double, 3> lo{}, hi{};
+                            for (int a = 0; a < 3; ++a) {
+                                const std::int64_t ma = i % dims_[a];
+                                i /= dims_[a];
+                                lo[a] = static_cast<double>(ma << shift_) - m;
+                                hi[a] = static_cast<double>(std::min((ma + 1) << shift_, nodes_[a] - 1)) + m;
+                            }
+                            double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+                            double z0 = INFINITY, z1 = -INFINITY, far = 0.0;
+                            Vec3 mid{0, 0, 0};
+                            for (int k = 0; k < 8; ++k) {
+                                const Vec3 c = corner(lo, hi, k);
+                                double px = 0, py = 0;
+                                pixel(c, px, py);
+                                x0 = std::min(x0, px);
+                                x1 = std::max(x1, px);
+                                y0 = std::min(y0, py);
+                                y1 = std::max(y1, py);
+                                z0 = std::min(z0, c.z);
+                                z1 = std::max(z1, c.z);
+                                far = std::max(far, length(c));
+                                mid += c * 0.125;
+                            }
+                            // t along a ray: its camera depth (orthographic), or
+                            // the distance from the eye (perspective: at least
+                            // the depth, and at least the centre's distance less
+                            // the half diagonal; at most the farthest corner's).
+                            double t0 = z0, t1 = z1;
+                            if (perspective) {
+                                const Vec3 half = corner(lo, hi, 7) - mid;
+                                t0 = std::max(z0, length(mid) - length(half));
+                                t1 = far;
+                            }
+                            Footprint& f = boxes[static_cast<std::size_t>(b)];
+                            if (!std::isfinite(x0 + x1 + y0 + y1 + t0 + t1)) {  // no bound
+                                f = {0, width - 1, 0, height - 1, -INFINITY, INFINITY};
+                                seen[static_cast<std::size_t>(b)] = 1;
+                                continue;
+                            }
+                            // pixels whose centres may fall in the box's image, one more each side
+                            auto clip = [](double v, int n) {
+                                return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(n)));
+                            };
+                            f.x0 = std::max(0, clip(std::floor(x0) - 1.0, width));
+                            f.x1 = std::min(width - 1, clip(std::ceil(x1) + 1.0, width));
+                            f.y0 = std::max(0, clip(std::floor(y0) - 1.0, height));
+                            f.y1 = std::min(height - 1, clip(std::ceil(y1) + 1.0, height));
+                            f.lo = round_float(t0 - slack, true);
+                            f.hi = round_float(t1 + slack, false);
+                            seen[static_cast<std::size_t>(b)] = f.x0 <= f.x1 && f.y0 <= f.y1;
+                        }
+                    });
+    out.width = width;
+    const auto pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    out.lo.assign(pixels, INFINITY);
+    out.hi.assign(pixels, -INFINITY);
+    // rows in bands over threads; each band takes every box that reaches it
+    parallel_chunks(height, resolve_threads(threads), [&](std::int64_t r0, std::int64_t r1) {
+        for (std::size_t b = 0; b < boxes.size(); ++b) {
+            if (seen[b] == 0) continue;
+            const Footprint& f = boxes[b];
+            const int ya = std::max<int>(f.y0, static_cast<int>(r0)),
+                      yb = std::min<int>(f.y1, static_cast<int>(r1) - 1);
+            for (int y = ya; y <= yb; ++y) {
+                float* lo = out.lo.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+                float* hi = out.hi.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+                for (int x = f.x0; x <= f.x1; ++x) {
+                    lo[x] = std::min(lo[x], f.lo);
+                    hi[x] = std::max(hi[x], f.hi);
+                }
+            }
+        }
+    });
+    return out;
 }
 
 double EmptySpace::empty_fraction() const {

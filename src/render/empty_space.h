@@ -32,6 +32,7 @@
 #include <limits>
 #include <vector>
 
+#include "fathom/camera.h"
 #include "fathom/math.h"
 #include "fathom/render.h"
 #include "fathom/transfer_function.h"
@@ -65,6 +66,32 @@ inline double zero_below(const Classifier& tf, Model m) {
     return e;
 }
 
+/// Where the camera rays of one frame can meet non-empty macrocells
+/// (EmptySpace::pixel_bounds): for pixel (x, y), every point of the ray
+/// through its centre (Camera::generate) that lies within `kMargin` index
+/// units of a non-empty macrocell has its parameter t in [lo, hi]; lo > hi
+/// where the ray meets none.
+struct PixelBounds {
+    int width = 0;
+    std::vector<float> lo, hi;  // per pixel, row-major; empty: no bounds (lo = −∞, hi = +∞)
+    /// How far (index units, per axis) around each macrocell the bounds
+    /// hold: far more than rounding moves a computed sample position.
+    static constexpr double kMargin = 1.0 / 64.0;
+    [[nodiscard]] bool any() const { return !lo.empty(); }
+    /// The bounds of pixel (x, y).
+    void at(int x, int y, double& t_lo, double& t_hi) const {
+        if (lo.empty()) {
+            t_lo = -INFINITY;
+            t_hi = INFINITY;
+            return;
+        }
+        const std::size_t k =
+            static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
+        t_lo = lo[k];
+        t_hi = hi[k];
+    }
+};
+
 class EmptySpace {
 public:
     EmptySpace() = default;
@@ -83,6 +110,17 @@ public:
     /// interval, and a pre-integrated segment between them is empty too.
     [[nodiscard]] bool joins_empty() const { return joins_empty_; }
     [[nodiscard]] double empty_fraction() const;
+
+    /// The frame's PixelBounds for `camera` and a width × height image of a
+    /// lattice placed by `axes` (index → world) and `origin`: the box of
+    /// every non-empty macrocell that borders an empty one or the grid's
+    /// edge, widened by PixelBounds::kMargin, is projected onto the image
+    /// (a ray can enter and leave the non-empty macrocells only through
+    /// such a box). No bounds (PixelBounds::any() false) unless the whole
+    /// lattice lies in front of the camera and the camera's axes are
+    /// orthonormal.
+    [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
+                                           const Vec3& origin, int threads) const;
 
     /// The cap of distance_ahead.
     static constexpr int kMaxDistance = 255;
@@ -136,6 +174,7 @@ private:
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     void build_ahead(int threads);
+    void find_border();
     [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
         return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
     }
@@ -150,6 +189,7 @@ private:
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
     std::vector<std::uint8_t> empty_;     // per macrocell: 1 where empty
     std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like empty_, one per octant
+    std::vector<std::uint32_t> border_;   // non-empty macrocells next to an empty one or the grid's edge
     bool any_ = false;
     bool joins_empty_ = false;
 };
@@ -200,6 +240,21 @@ public:
                                : (d == 0 ? INFINITY : -INFINITY);
             }
         }
+        // Samples before the ray's first point near a non-empty macrocell,
+        // or after its last (RaySpan::occupied_lo/hi), lie in empty ones: one
+        // sample of slack each way covers the rounding of t.
+        if (!(sp.occupied_lo <= sp.occupied_hi)) {  // the ray meets none
+            before_ = kNever;
+            return;
+        }
+        const auto index_at = [&](double t) {  // the fractional sample index at t, clamped
+            const double x = (t - sp.t_near) / grid.delta - grid.offset + static_cast<double>(grid.first);
+            return std::clamp(x, -0x1p52, 0x1p52);  // ±∞ too
+        };
+        if (sp.occupied_lo > -INFINITY)
+            before_ = static_cast<std::int64_t>(std::floor(index_at(sp.occupied_lo))) - 1;
+        if (sp.occupied_hi < INFINITY)
+            after_ = static_cast<std::int64_t>(std::ceil(index_at(sp.occupied_hi))) + 1;
     }
 
     /// A run crosses the box ahead of sample j's macrocell, in the ray's
@@ -212,12 +267,16 @@ public:
     /// lies in its box (the differentiable renderer computes no gradient in
     /// empty macrocells).
     Run run(std::int64_t j, int dir, std::int64_t limit, bool exact = false) const {
-        const auto m = es_.macrocell(g_.at(j));
+        if (j <= before_) return {dir > 0 ? std::min(before_, limit) : limit, true};
+        if (j >= after_) return {dir > 0 ? limit : std::max(after_, limit), true};
+        const auto m = macrocell_of(j);
         const int o = dir > 0 ? octant_fwd_ : octant_back_;
         // the box ahead of the ray that holds only macrocells of m's kind
         const EmptySpace::Box b = es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o);
-        if (es_.empty(m)) return {last_in(b, j, dir, limit), true};
-        return {exact ? last_in(b, j, dir, limit) : estimated_last(b, j, dir, limit), false};
+        if (es_.empty(m) || exact) return {last_in(b, j, dir, limit), es_.empty(m)};
+        const std::int64_t k = estimated_last(b, j, dir, limit);
+        if (k != limit) remember(k + dir);  // where the next run starts, long before it is asked
+        return {k, false};
     }
 
     /// As run(), but an empty run goes on through the boxes of empty
@@ -229,7 +288,7 @@ public:
         const int o = dir > 0 ? octant_fwd_ : octant_back_;
         std::int64_t k = r.last;
         while (k != limit) {
-            const auto m = es_.macrocell(g_.at(k + dir));
+            const auto m = macrocell_of(k + dir);
             if (!es_.empty(m)) break;
             k = last_in(es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o), k + dir, dir, limit);
         }
@@ -262,8 +321,20 @@ private:
                                                      std::int64_t limit) const {
         std::int64_t k = estimated_last(b, j, dir, limit);
         // Verify on the computed positions (rounding can move the last one out).
-        while (k != j && !b.contains(es_.macrocell(g_.at(k)))) k -= dir;
-        return k;
+        for (;;) {
+            const auto mk = es_.macrocell(g_.at(k));
+            if (k != limit) remember(k + dir);  // alongside the check: they do not wait on each other
+            if (k == j || b.contains(mk)) return k;
+            k -= dir;
+        }
+    }
+    // The macrocell of sample j's computed position (remembered or not).
+    [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell_of(std::int64_t j) const {
+        return j == next_j_ ? next_m_ : es_.macrocell(g_.at(j));
+    }
+    FATHOM_INLINE void remember(std::int64_t j) const {
+        next_j_ = j;
+        next_m_ = es_.macrocell(g_.at(j));
     }
 
     struct Axis {
@@ -274,6 +345,12 @@ private:
     SampleGrid g_;
     std::array<std::array<Axis, 3>, 2> axes_{};  // forward, backward
     int octant_fwd_ = 0, octant_back_ = 7;
+    static constexpr std::int64_t kNever = std::int64_t{1} << 60;
+    // Samples j ≤ before_ or ≥ after_ lie in empty macrocells.
+    std::int64_t before_ = -kNever, after_ = kNever;
+    // The macrocell of sample next_j_, where the next run likely starts.
+    mutable std::int64_t next_j_ = kNever;
+    mutable std::array<std::int64_t, 3> next_m_{};
 };
 
 }  // namespace fathom

@@ -143,6 +143,17 @@ const RenderSettings& Renderer::settings() const {
     return impl_->s;
 }
 
+PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
+    const bool segments = s.integrator == IntegratorKind::alpha || s.integrator == IntegratorKind::riemann ||
+                          s.integrator == IntegratorKind::preintegrated ||
+                          s.integrator == IntegratorKind::preintegrated_simple;
+    const bool zero_able =
+        s.model == Model::emission_absorption || s.model == Model::absorption || s.model == Model::emission;
+    const EmptySpace* es = skipper();
+    if (es == nullptr || !segments || !zero_able) return {};
+    return es->pixel_bounds(camera, s.width, s.height, lattice->axes(), origin, s.threads);
+}
+
 RayResult Renderer::trace(const Ray& ray) const {
     return impl_->trace(ray);
 }
@@ -154,6 +165,7 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
         img.depth.assign(img.rgba.size() / 4, INFINITY);
         img.first_hit.assign(img.rgba.size() / 4, INFINITY);
     }
+    const PixelBounds bounds = impl_->pixel_bounds(camera);
     constexpr int kTile = 16;
     const int tx = (s.width + kTile - 1) / kTile, ty = (s.height + kTile - 1) / kTile;
     const int tiles = tx * ty;
@@ -167,7 +179,10 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
                 for (int y = y0; y < std::min(y0 + kTile, s.height); ++y)
                     for (int x = x0; x < std::min(x0 + kTile, s.width); ++x) {
                         const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
-                        const RayResult r = impl_->trace(camera.generate(x, y, s.width, s.height), offset);
+                        double lo = 0, hi = 0;
+                        bounds.at(x, y, lo, hi);
+                        const RayResult r =
+                            impl_->trace(camera.generate(x, y, s.width, s.height), offset, lo, hi);
                         float* p = img.pixel(x, y);
                         for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
                         p[3] = static_cast<float>(r.alpha);

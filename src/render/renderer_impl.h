@@ -76,10 +76,22 @@ struct Renderer::Impl {
         return true;
     }
 
-    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0) const {
+    /// The frame's PixelBounds for `camera` where its tracer walks the
+    /// macrocells (the integrators over segments of a zero-able medium);
+    /// else none.
+    [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera) const;
+
+    /// The ray's result; [occupied_lo, occupied_hi] bounds the t of its
+    /// points near non-empty macrocells (RaySpan).
+    [[nodiscard]] RayResult trace(const Ray& ray, double sample_offset = -1.0, double occupied_lo = -INFINITY,
+                                  double occupied_hi = INFINITY) const {
         RaySpan span;
         if (!span_of(ray, span)) return {bg, 0.0};
+        if (!(occupied_lo <= occupied_hi))  // no sample can be in a non-empty macrocell: all (1, 0)
+            return composite(0, s.order, s.termination, bg, [](std::int64_t) { return Segment{1.0, {}}; });
         span.sample_offset = sample_offset;
+        span.occupied_lo = occupied_lo;
+        span.occupied_hi = occupied_hi;
         return tracer(span);
     }
 };
