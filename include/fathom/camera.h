@@ -48,4 +48,17 @@ public:
     [[nodiscard]] Ray generate(int px, int py, int width, int height_px) const;
 };
 
+/// The rays of Camera::generate for one width × height image (the same
+/// bits), with what every pixel shares computed once.
+class PixelRays {
+public:
+    PixelRays(const Camera& camera, int width, int height);
+    [[nodiscard]] Ray operator()(int px, int py) const;
+
+private:
+    Camera c_;
+    int width_, height_;
+    double aspect_, tan_half_;  // tan(fov_y / 2): perspective
+};
+
 }  // namespace fathom

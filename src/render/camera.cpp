@@ -67,14 +67,24 @@ std::array<double, 16> Camera::to_matrix() const {
 }
 
 Ray Camera::generate(int px, int py, int width, int height_px) const {
-    const double aspect = static_cast<double>(width) / height_px;
-    const double x = (2.0 * (px + 0.5) / width - 1.0) * aspect;
-    const double y = 1.0 - 2.0 * (py + 0.5) / height_px;
-    if (projection == Projection::perspective) {
-        const double t = std::tan(fov_y_deg * std::numbers::pi / 360.0);
-        return {position, normalize(forward + right * (x * t) + up * (y * t))};
-    }
-    return {position + (right * x + up * y) * (height / 2.0), forward};
+    return PixelRays(*this, width, height_px)(px, py);
+}
+
+PixelRays::PixelRays(const Camera& camera, int width, int height)
+    : c_(camera),
+      width_(width),
+      height_(height),
+      aspect_(static_cast<double>(width) / height),
+      tan_half_(camera.projection == Projection::perspective
+                    ? std::tan(camera.fov_y_deg * std::numbers::pi / 360.0)
+                    : 0.0) {}
+
+Ray PixelRays::operator()(int px, int py) const {
+    const double x = (2.0 * (px + 0.5) / width_ - 1.0) * aspect_;
+    const double y = 1.0 - 2.0 * (py + 0.5) / height_;
+    if (c_.projection == Projection::perspective)
+        return {c_.position, normalize(c_.forward + c_.right * (x * tan_half_) + c_.up * (y * tan_half_))};
+    return {c_.position + (c_.right * x + c_.up * y) * (c_.height / 2.0), c_.forward};
 }
 
 }  // namespace fathom

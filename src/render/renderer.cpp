@@ -166,6 +166,7 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
         img.first_hit.assign(img.rgba.size() / 4, INFINITY);
     }
     const PixelBounds bounds = impl_->pixel_bounds(camera);
+    const PixelRays rays(camera, s.width, s.height);
     constexpr int kTile = 16;
     const int tx = (s.width + kTile - 1) / kTile, ty = (s.height + kTile - 1) / kTile;
     const int tiles = tx * ty;
@@ -181,8 +182,7 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
                         const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
                         double lo = 0, hi = 0;
                         bounds.at(x, y, lo, hi);
-                        const RayResult r =
-                            impl_->trace(camera.generate(x, y, s.width, s.height), offset, lo, hi);
+                        const RayResult r = impl_->trace(rays(x, y), offset, lo, hi);
                         float* p = img.pixel(x, y);
                         for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
                         p[3] = static_cast<float>(r.alpha);
