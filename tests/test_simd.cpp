@@ -190,3 +190,69 @@ TEST(Simd, SplitZeroCountsRunsOfZeroLanes) {
     EXPECT_EQ(simd::split_zero(z, 0, -1, 1), -1);
     EXPECT_EQ(simd::split_zero(z, 15, -1, 3), -3);
 }
+
+// Blocks of 2³ cells whose nodes all lie below E (simd::active_cells): their
+// bits are clear exactly there (a NaN node sets them), and classify_batch,
+// which stores a vector of samples in clear blocks as zero without
+// interpolating, gives the very batches it gives without the bits.
+TEST(Simd, InactiveBlocksGiveTheBatchesOfFullClassification) {
+    const double e = 100.0;
+    const Classifier c(tf(false), 1.0);
+    const simd::FlatFunction fs = simd::flatten(c.sigma_function()), fc = simd::flatten(c.color_function());
+    std::mt19937 rng(5);
+    int skipped = 0;
+    for (DType type : {DType::u8, DType::i8, DType::u16, DType::i16, DType::f32}) {
+        Volume v = field(type);
+        if (type == DType::i8) {  // the field shifted into int8's range
+            const Volume f = field(DType::f32);
+            for (std::int64_t k = 0; k < 27; ++k)
+                for (std::int64_t j = 0; j < 19; ++j)
+                    for (std::int64_t i = 0; i < 23; ++i) v.set_value(i, j, k, f.value(i, j, k) - 100.0);
+        }
+        if (type == DType::f32) v.set_value(1, 1, 1, std::numeric_limits<double>::quiet_NaN());
+        const double ev = type == DType::i8 ? e - 100.0 : e;
+        const std::vector<std::uint32_t> bits = simd::active_cells(v, ev, 2);
+        ASSERT_FALSE(bits.empty()) << dtype_name(type);
+        const auto& n = v.dims();
+        int set = 0, clear = 0, wrong = 0;
+        for (std::int64_t k = 0; k < n[2] / 2; ++k)
+            for (std::int64_t j = 0; j < n[1] / 2; ++j)
+                for (std::int64_t i = 0; i < n[0] / 2; ++i) {
+                    bool any = false;  // a node of the block not below ev
+                    for (std::int64_t z = 2 * k; z <= std::min(2 * k + 2, n[2] - 1); ++z)
+                        for (std::int64_t y = 2 * j; y <= std::min(2 * j + 2, n[1] - 1); ++y)
+                            for (std::int64_t x = 2 * i; x <= std::min(2 * i + 2, n[0] - 1); ++x)
+                                any = any || !(v.value(x, y, z) < ev);
+                    const std::int64_t b = i + n[0] / 2 * (j + n[1] / 2 * k);
+                    const bool bit = ((bits[static_cast<std::size_t>(b >> 5)] >> (b & 31)) & 1u) != 0;
+                    wrong += bit != any ? 1 : 0;
+                    (bit ? set : clear) += 1;
+                }
+        EXPECT_EQ(wrong, 0) << dtype_name(type);
+        EXPECT_GT(set, 50) << dtype_name(type);
+        EXPECT_GT(clear, 50) << dtype_name(type);
+        simd::BatchSource without{v.bytes(), type, n[0], n[1], n[2], &fs, &fc, ev};
+        simd::BatchSource with = without;
+        with.active = bits.data();
+        std::uniform_real_distribution<double> pos(0.0, 1.0), dir(-1.0, 1.0);
+        for (int r = 0; r < 300; ++r) {
+            simd::RayGrid g;
+            g.p0 = {pos(rng) * 22, pos(rng) * 18, pos(rng) * 26};
+            g.dp = {dir(rng), dir(rng), dir(rng)};
+            g.delta = 0.4;
+            g.offset = 0.5;
+            for (auto t : simd::available_targets()) {
+                simd::force_target(t);
+                simd::BatchOut a, b;
+                simd::classify_batch(without, g, 1, simd::kBatch, a);
+                simd::classify_batch(with, g, 1, simd::kBatch, b);
+                EXPECT_EQ(a.zero, b.zero) << simd::active_target() << " ray " << r;
+                EXPECT_EQ(std::memcmp(a.sigma, b.sigma, sizeof a.sigma), 0) << simd::active_target();
+                EXPECT_EQ(std::memcmp(a.color, b.color, sizeof a.color), 0) << simd::active_target();
+                skipped += a.zero == 0xFFFFu ? 1 : 0;
+            }
+            simd::force_target(0);
+        }
+    }
+    EXPECT_GT(skipped, 100);  // batches below E throughout: where the bits can skip
+}

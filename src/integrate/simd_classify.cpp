@@ -3,7 +3,9 @@
 #include "integrate/simd_classify.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
+#include <thread>
 #include <type_traits>
 
 #undef HWY_TARGET_INCLUDE
@@ -56,12 +58,6 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     }
 }
 
-/// Sample types whose corner pairs (q[0], q[1]) come from one gather: 32
-/// bits for 8- and 16-bit integers, 64 for float32.
-template <class T>
-constexpr bool kPairs =
-    std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::int8_t> || std::is_same_v<T, std::uint16_t> ||
-    std::is_same_v<T, std::int16_t> || std::is_same_v<T, float>;
 /// Byte offsets of 8- and 16-bit samples stay in int32 lanes.
 constexpr std::int64_t kPairBytesMax = std::int64_t{1} << 30;
 
@@ -101,18 +97,35 @@ HWY_INLINE void gather_pair(DI di, const BatchSource& src, VI o, VI last, VI& lo
 /// operations, so the same bits as the scalar fetch.
 template <class T>
 HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch],
-                             const double (*frac)[kBatch], std::size_t used, double* out) {
+                             const double (*frac)[kBatch], std::size_t used, double* out,
+                             bool skip_inactive) {
     const D d;
     const std::size_t N = hn::Lanes(d);
     constexpr std::int64_t size = sizeof(T);
     const std::int64_t sy = src.nx * size, sz = sy * src.ny;
     const std::int64_t rows[4] = {0, sy, sz, sz + sy};
     const V nx = hn::Set(d, static_cast<double>(src.nx)), ny = hn::Set(d, static_cast<double>(src.ny));
+    const V bx = hn::Set(d, static_cast<double>(src.nx / 2)),
+            by = hn::Set(d, static_cast<double>(src.ny / 2));
     for (std::size_t b = 0; b < used; b += N) {
         // the byte offset of the cell's first node: an exact integer in doubles
         const V node =
             hn::Add(hn::Load(d, cell[0] + b),
                     hn::Mul(nx, hn::Add(hn::Load(d, cell[1] + b), hn::Mul(ny, hn::Load(d, cell[2] + b)))));
+        if (skip_inactive) {  // no block with a node at or above zero_below: every value is below it
+            const hn::Rebind<std::int32_t, D> di;
+            const V half = hn::Set(d, 0.5);
+            auto block = [&](int a) { return hn::Floor(hn::Mul(hn::Load(d, cell[a] + b), half)); };
+            const V blocks = hn::Add(block(0), hn::Mul(bx, hn::Add(block(1), hn::Mul(by, block(2)))));
+            const auto ni = hn::DemoteTo(di, blocks);
+            const auto word =
+                hn::GatherIndex(di, reinterpret_cast<const std::int32_t*>(src.active), hn::ShiftRight<5>(ni));
+            const auto bit = hn::And(hn::Shr(word, hn::And(ni, hn::Set(di, 31))), hn::Set(di, 1));
+            if (hn::AllTrue(di, hn::Eq(bit, hn::Zero(di)))) {
+                hn::Store(hn::Set(d, -INFINITY), d, out + b);
+                continue;
+            }
+        }
         const V bytes = hn::Mul(node, hn::Set(d, static_cast<double>(size)));
         V c[8];
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
@@ -155,7 +168,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
 /// j0 + count − 1, rounded up to whole vectors; returns how many it wrote.
 template <class T>
 std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count,
-                              double* out) {
+                              double* out, bool skip_inactive = false) {
     const D d;
     const std::size_t N = hn::Lanes(d);
     const T* data = static_cast<const T*>(src.data);
@@ -189,7 +202,7 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
         // gathers for 8 corners), in vectors.
         if (sizeof(T) == 4 ||
             src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
-            pair_corners<T>(src, cell, frac, used, out);
+            pair_corners<T>(src, cell, frac, used, out, skip_inactive && src.active != nullptr);
             return used;
         }
     }
@@ -226,7 +239,9 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
     const D d;
     HWY_ALIGN double values[kBatch];
     std::size_t used = 0;
-    visit_dtype(src.type, [&]<class T>(T*) { used = interpolate_typed<T>(src, ray, j0, count, values); });
+    // vectors of samples in inactive cells come back as −∞: below zero_below
+    visit_dtype(src.type,
+                [&]<class T>(T*) { used = interpolate_typed<T>(src, ray, j0, count, values, true); });
     const V zero_below = hn::Set(d, src.zero_below);
     out.zero = 0;
     for (std::size_t b = 0; b < used; b += hn::Lanes(d)) {
@@ -294,6 +309,73 @@ FlatFunction flatten(const PiecewiseLinear<1>& f) {
 FlatFunction flatten(const PiecewiseLinear<3>& f) {
     return flatten_any(f.knots(), 3,
                        [&](std::size_t i, int c) { return f.values()[i][static_cast<std::size_t>(c)]; });
+}
+
+std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) {
+    std::vector<std::uint32_t> bits;
+    const auto& n = v.dims();
+    const std::int64_t bx = n[0] / 2, by = n[1] / 2, bz = n[2] / 2;  // blocks: ⌈(n − 1)/2⌉
+    if (v.components() != 1 || n[0] * n[1] * n[2] >= (std::int64_t{1} << 31)) return bits;
+    visit_dtype(v.dtype(), [&]<class T>(T*) {
+        if constexpr (kPairs<T>) {
+            const T* data = v.data<T>();
+            // integers: !(v < e) ⇔ v ≥ ⌈e⌉ (e finite), clamped to what 32 bits hold
+            const auto at_least = static_cast<std::int32_t>(std::clamp(std::ceil(e), -0x1p31, 0x1p31 - 1.0));
+            bits.assign(static_cast<std::size_t>(bx * by * bz / 32 + 2), 0u);  // a word to spare for gathers
+            // block slabs (fixed z) over threads; a word may span two slabs:
+            // one atomic or per word
+            std::atomic<std::int64_t> next{0};
+            auto worker = [&] {
+                std::vector<std::uint8_t> col(static_cast<std::size_t>(n[0]));
+                for (std::int64_t k = next++; k < bz; k = next++)
+                    for (std::int64_t j = 0; j < by; ++j) {
+                        // per x: some node of rows y = 2j … 2j + 2, z = 2k … 2k + 2 is not below e
+                        std::fill(col.begin(), col.end(), std::uint8_t{0});
+                        for (std::int64_t z = 2 * k; z <= std::min(2 * k + 2, n[2] - 1); ++z)
+                            for (std::int64_t y = 2 * j; y <= std::min(2 * j + 2, n[1] - 1); ++y) {
+                                const T* row = data + n[0] * (y + n[1] * z);
+                                if constexpr (std::is_integral_v<T>) {  // v ≥ ⌈e⌉, in T's range
+                                    for (std::int64_t x = 0; x < n[0]; ++x)
+                                        col[static_cast<std::size_t>(x)] |= static_cast<std::uint8_t>(
+                                            static_cast<std::int32_t>(row[x]) >= at_least);
+                                } else {
+                                    for (std::int64_t x = 0; x < n[0]; ++x)
+                                        col[static_cast<std::size_t>(x)] |=
+                                            static_cast<std::uint8_t>(!(static_cast<double>(row[x]) < e));
+                                }
+                            }
+                        const std::int64_t base = bx * (j + by * k);
+                        std::int64_t word = base >> 5;
+                        std::uint32_t acc = 0;
+                        auto flush = [&] {
+                            if (acc != 0)
+                                std::atomic_ref<std::uint32_t>(bits[static_cast<std::size_t>(word)])
+                                    .fetch_or(acc, std::memory_order_relaxed);
+                            acc = 0;
+                        };
+                        for (std::int64_t i = 0; i < bx; ++i) {  // block i: nodes x = 2i … 2i + 2
+                            const std::int64_t b = base + i;
+                            if ((b >> 5) != word) {
+                                flush();
+                                word = b >> 5;
+                            }
+                            bool on = false;
+                            for (std::int64_t x = 2 * i; x <= std::min(2 * i + 2, n[0] - 1); ++x)
+                                on = on || col[static_cast<std::size_t>(x)] != 0;
+                            if (on) acc |= 1u << (b & 31);
+                        }
+                        flush();
+                    }
+            };
+            const int nt =
+                threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+            std::vector<std::thread> pool;
+            for (int i = 1; i < nt; ++i) pool.emplace_back(worker);
+            worker();
+            for (auto& t : pool) t.join();
+        }
+    });
+    return bits;
 }
 
 std::string active_target() {

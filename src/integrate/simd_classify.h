@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "fathom/math.h"
@@ -26,6 +27,13 @@ namespace fathom::simd {
 
 /// Samples per batch (a multiple of every target's lane count).
 inline constexpr int kBatch = 16;
+
+/// Sample types whose corner pairs (q[0], q[1]) come from one gather: 32
+/// bits for 8- and 16-bit integers, 64 for float32.
+template <class T>
+constexpr bool kPairs =
+    std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::int8_t> || std::is_same_v<T, std::uint16_t> ||
+    std::is_same_v<T, std::int16_t> || std::is_same_v<T, float>;
 
 /// A piecewise-linear function flattened for lane-parallel evaluation.
 struct FlatFunction {
@@ -46,7 +54,20 @@ struct BatchSource {
     /// frame's model (render/empty_space.h zero_below): a vector of such
     /// samples is stored as σ = 0, c = 0 without evaluating the functions.
     double zero_below = -INFINITY;
+    /// Optional (nullptr: none): the bits of active_cells for zero_below.
+    /// A vector of samples in blocks without a set bit is below it:
+    /// classify_batch stores it as zero without interpolating.
+    const std::uint32_t* active = nullptr;
 };
+
+/// Blocks of 2 × 2 × 2 cells (3³ nodes, clipped to the lattice), bx = nx/2
+/// by ny/2 by nz/2 of them: bit i + bx·(j + by·k) is set where some node of
+/// block (i, j, k) is not below e (NaN included). A trilinear value is a
+/// convex combination of its cell's corners, and rounding keeps it within
+/// them, so a sample in a block without a set bit lies below e. One bit per
+/// 8 cells: 1/64 of the volume's size in 8-bit samples. Empty when v's
+/// sample type has no paired gathers or v has 2³¹ nodes or more.
+std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads);
 
 struct RayGrid {
     Vec3 p0, dp;

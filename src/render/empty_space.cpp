@@ -84,7 +84,6 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.dims_ = macro_dims(v, shift);
     es.empty_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
     es.any_ = std::find(es.empty_.begin(), es.empty_.end(), std::uint8_t{1}) != es.empty_.end();
-    es.build_ahead(resolve_threads(threads));
     es.find_border();
     return es;
 }
@@ -130,49 +129,45 @@ EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads
     return es;
 }
 
-// One pass per octant, from the far corner of that octant back: the box
+const std::uint8_t* EmptySpace::ahead(int o) const {
+    Octants& oc = *ahead_;
+    const auto k = static_cast<std::size_t>(o);
+    std::call_once(oc.once[k], [&] { build_ahead(o, oc.grid[k]); });
+    return oc.grid[k].data();
+}
+
+// One pass for octant o, from the far corner of that octant back: the box
 // reaching r ahead of m is m and the boxes reaching r − 1 ahead of its 7
 // neighbours ahead, so D(m) = 1 + min over them, where a neighbour of the
 // other kind (empty or not) counts 0; the grid's outside does not stop a
 // box, which is clipped.
-void EmptySpace::build_ahead(int threads) {
+void EmptySpace::build_ahead(int o, std::vector<std::uint8_t>& out) const {
     const std::size_t n = empty_.size();
-    ahead_.assign(n * 8, 0);
+    out.assign(n, 0);
     const auto& d = dims_;
-    auto octant = [&](int o) {
-        const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
-        std::uint8_t* ahead = ahead_.data() + static_cast<std::size_t>(o) * n;  // octant-major
-        for (std::int64_t zi = 0; zi < d[2]; ++zi)
-            for (std::int64_t yi = 0; yi < d[1]; ++yi)
-                for (std::int64_t xi = 0; xi < d[0]; ++xi) {
-                    // visit the cells ahead first: against the octant's direction
-                    const std::array<std::int64_t, 3> m{s[0] > 0 ? d[0] - 1 - xi : xi,
-                                                        s[1] > 0 ? d[1] - 1 - yi : yi,
-                                                        s[2] > 0 ? d[2] - 1 - zi : zi};
-                    const std::size_t i = index(m);
-                    const bool empty = empty_[i] != 0;
-                    int best = kMaxDistance;
-                    for (int e = 1; e < 8; ++e) {
-                        const std::array<std::int64_t, 3> q{m[0] + ((e & 1) != 0 ? s[0] : 0),
-                                                            m[1] + ((e & 2) != 0 ? s[1] : 0),
-                                                            m[2] + ((e & 4) != 0 ? s[2] : 0)};
-                        if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= d[0] || q[1] >= d[1] || q[2] >= d[2])
-                            continue;
-                        const std::size_t k = index(q);  // a neighbour of the other kind stops the box
-                        best = std::min(best, (empty_[k] != 0) == empty ? static_cast<int>(ahead[k]) : 0);
-                    }
-                    ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, kMaxDistance));
+    const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
+    std::uint8_t* ahead = out.data();
+    for (std::int64_t zi = 0; zi < d[2]; ++zi)
+        for (std::int64_t yi = 0; yi < d[1]; ++yi)
+            for (std::int64_t xi = 0; xi < d[0]; ++xi) {
+                // visit the cells ahead first: against the octant's direction
+                const std::array<std::int64_t, 3> m{s[0] > 0 ? d[0] - 1 - xi : xi,
+                                                    s[1] > 0 ? d[1] - 1 - yi : yi,
+                                                    s[2] > 0 ? d[2] - 1 - zi : zi};
+                const std::size_t i = index(m);
+                const bool empty = empty_[i] != 0;
+                int best = kMaxDistance;
+                for (int e = 1; e < 8; ++e) {
+                    const std::array<std::int64_t, 3> q{m[0] + ((e & 1) != 0 ? s[0] : 0),
+                                                        m[1] + ((e & 2) != 0 ? s[1] : 0),
+                                                        m[2] + ((e & 4) != 0 ? s[2] : 0)};
+                    if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= d[0] || q[1] >= d[1] || q[2] >= d[2])
+                        continue;
+                    const std::size_t k = index(q);  // a neighbour of the other kind stops the box
+                    best = std::min(best, (empty_[k] != 0) == empty ? static_cast<int>(ahead[k]) : 0);
                 }
-    };
-    // the octants are independent: spread them over the threads
-    std::atomic<int> next{0};
-    auto worker = [&] {
-        for (int o = next++; o < 8; o = next++) octant(o);
-    };
-    std::vector<std::thread> pool;
-    for (int i = 1; i < std::min(threads, 8); ++i) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
+                ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, kMaxDistance));
+            }
 }
 
 namespace {
@@ -255,85 +250,89 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         px = (x / aspect + 1.0) * width / 2.0 - 0.5;
         py = (1.0 - y) * height / 2.0 - 0.5;
     };
-    std::vector<Footprint> boxes(border_.size());
-    std::vector<std::uint8_t> seen(border_.size());
-    parallel_chunks(static_cast<std::int64_t>(border_.size()), resolve_threads(threads),
-                    [&](std::int64_t b0, std::int64_t b1) {
-                        for (std::int64_t b = b0; b < b1; ++b) {
-                            std::int64_t i = border_[static_cast<std::size_t>(b)];
-                            std::array<double, 3> lo{}, hi{};
-                            for (int a = 0; a < 3; ++a) {
-                                const std::int64_t ma = i % dims_[a];
-                                i /= dims_[a];
-                                lo[a] = static_cast<double>(ma << shift_) - m;
-                                hi[a] = static_cast<double>(std::min((ma + 1) << shift_, nodes_[a] - 1)) + m;
-                            }
-                            double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
-                            double z0 = INFINITY, z1 = -INFINITY, far = 0.0;
-                            Vec3 mid{0, 0, 0};
-                            for (int k = 0; k < 8; ++k) {
-                                const Vec3 c = corner(lo, hi, k);
-                                double px = 0, py = 0;
-                                pixel(c, px, py);
-                                x0 = std::min(x0, px);
-                                x1 = std::max(x1, px);
-                                y0 = std::min(y0, py);
-                                y1 = std::max(y1, py);
-                                z0 = std::min(z0, c.z);
-                                z1 = std::max(z1, c.z);
-                                far = std::max(far, length(c));
-                                mid += c * 0.125;
-                            }
-                            // t along a ray: its camera depth (orthographic), or
-                            // the distance from the eye (perspective: at least
-                            // the depth, and at least the centre's distance less
-                            // the half diagonal; at most the farthest corner's).
-                            double t0 = z0, t1 = z1;
-                            if (perspective) {
-                                const Vec3 half = corner(lo, hi, 7) - mid;
-                                t0 = std::max(z0, length(mid) - length(half));
-                                t1 = far;
-                            }
-                            Footprint& f = boxes[static_cast<std::size_t>(b)];
-                            if (!std::isfinite(x0 + x1 + y0 + y1 + t0 + t1)) {  // no bound
-                                f = {0, width - 1, 0, height - 1, -INFINITY, INFINITY};
-                                seen[static_cast<std::size_t>(b)] = 1;
-                                continue;
-                            }
-                            // pixels whose centres may fall in the box's image, one more each side
-                            auto clip = [](double v, int n) {
-                                return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(n)));
-                            };
-                            f.x0 = std::max(0, clip(std::floor(x0) - 1.0, width));
-                            f.x1 = std::min(width - 1, clip(std::ceil(x1) + 1.0, width));
-                            f.y0 = std::max(0, clip(std::floor(y0) - 1.0, height));
-                            f.y1 = std::min(height - 1, clip(std::ceil(y1) + 1.0, height));
-                            f.lo = round_float(t0 - slack, true);
-                            f.hi = round_float(t1 + slack, false);
-                            seen[static_cast<std::size_t>(b)] = f.x0 <= f.x1 && f.y0 <= f.y1;
-                        }
-                    });
+    // The footprint of border_[b] (x0 > x1 or y0 > y1: off the image).
+    auto project = [&](std::size_t b) {
+        std::int64_t i = border_[b];
+        std::array<double, 3> lo{}, hi{};
+        for (int a = 0; a < 3; ++a) {
+            const std::int64_t ma = i % dims_[a];
+            i /= dims_[a];
+            lo[a] = static_cast<double>(ma << shift_) - m;
+            hi[a] = static_cast<double>(std::min((ma + 1) << shift_, nodes_[a] - 1)) + m;
+        }
+        double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+        double z0 = INFINITY, z1 = -INFINITY, far = 0.0;
+        Vec3 mid{0, 0, 0};
+        for (int k = 0; k < 8; ++k) {
+            const Vec3 c = corner(lo, hi, k);
+            double px = 0, py = 0;
+            pixel(c, px, py);
+            x0 = std::min(x0, px);
+            x1 = std::max(x1, px);
+            y0 = std::min(y0, py);
+            y1 = std::max(y1, py);
+            z0 = std::min(z0, c.z);
+            z1 = std::max(z1, c.z);
+            far = std::max(far, length(c));
+            mid += c * 0.125;
+        }
+        // t along a ray: its camera depth (orthographic), or
+        // the distance from the eye (perspective: at least
+        // the depth, and at least the centre's distance less
+        // the half diagonal; at most the farthest corner's).
+        double t0 = z0, t1 = z1;
+        if (perspective) {
+            const Vec3 half = corner(lo, hi, 7) - mid;
+            t0 = std::max(z0, length(mid) - length(half));
+            t1 = far;
+        }
+        if (!std::isfinite(x0 + x1 + y0 + y1 + t0 + t1))  // no bound
+            return Footprint{0, width - 1, 0, height - 1, -INFINITY, INFINITY};
+        Footprint f{};
+        // pixels whose centres may fall in the box's image, one more each side
+        auto clip = [](double v, int n) {
+            return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(n)));
+        };
+        f.x0 = std::max(0, clip(std::floor(x0) - 1.0, width));
+        f.x1 = std::min(width - 1, clip(std::ceil(x1) + 1.0, width));
+        f.y0 = std::max(0, clip(std::floor(y0) - 1.0, height));
+        f.y1 = std::min(height - 1, clip(std::ceil(y1) + 1.0, height));
+        f.lo = round_float(t0 - slack, true);
+        f.hi = round_float(t1 + slack, false);
+        return f;
+    };
     out.width = width;
     const auto pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     out.lo.assign(pixels, INFINITY);
     out.hi.assign(pixels, -INFINITY);
-    // rows in bands over threads; each band takes every box that reaches it
-    parallel_chunks(height, resolve_threads(threads), [&](std::int64_t r0, std::int64_t r1) {
-        for (std::size_t b = 0; b < boxes.size(); ++b) {
-            if (seen[b] == 0) continue;
-            const Footprint& f = boxes[b];
-            const int ya = std::max<int>(f.y0, static_cast<int>(r0)),
-                      yb = std::min<int>(f.y1, static_cast<int>(r1) - 1);
-            for (int y = ya; y <= yb; ++y) {
-                float* lo = out.lo.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
-                float* hi = out.hi.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
-                for (int x = f.x0; x <= f.x1; ++x) {
-                    lo[x] = std::min(lo[x], f.lo);
-                    hi[x] = std::max(hi[x], f.hi);
+    // Chunks of boxes: each projected over threads, then drawn in bands of
+    // rows over threads (each band takes every box of the chunk that
+    // reaches it); memory stays at one chunk.
+    constexpr std::size_t kChunk = std::size_t{1} << 14;
+    std::vector<Footprint> boxes;
+    for (std::size_t c0 = 0; c0 < border_.size(); c0 += kChunk) {
+        boxes.resize(std::min(kChunk, border_.size() - c0));
+        parallel_chunks(static_cast<std::int64_t>(boxes.size()), resolve_threads(threads),
+                        [&](std::int64_t b0, std::int64_t b1) {
+                            for (std::int64_t b = b0; b < b1; ++b)
+                                boxes[static_cast<std::size_t>(b)] =
+                                    project(c0 + static_cast<std::size_t>(b));
+                        });
+        parallel_chunks(height, resolve_threads(threads), [&](std::int64_t r0, std::int64_t r1) {
+            for (const Footprint& f : boxes) {
+                const int ya = std::max<int>(f.y0, static_cast<int>(r0)),
+                          yb = std::min<int>(f.y1, static_cast<int>(r1) - 1);
+                for (int y = ya; y <= yb; ++y) {
+                    float* lo = out.lo.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+                    float* hi = out.hi.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+                    for (int x = f.x0; x <= f.x1; ++x) {
+                        lo[x] = std::min(lo[x], f.lo);
+                        hi[x] = std::max(hi[x], f.hi);
+                    }
                 }
             }
-        }
-    });
+        });
+    }
     return out;
 }
 

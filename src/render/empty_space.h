@@ -30,6 +30,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include "fathom/camera.h"
@@ -139,9 +141,12 @@ public:
     /// grid, holds only macrocells of m's kind (empty or not; capped at
     /// kMaxDistance): a ray leaving m in that octant crosses the whole
     /// region of m's kind ahead of it in one step.
-    [[nodiscard]] FATHOM_INLINE int distance_ahead(const std::array<std::int64_t, 3>& m, int o) const {
-        return ahead_[static_cast<std::size_t>(o) * empty_.size() + index(m)];
+    [[nodiscard]] int distance_ahead(const std::array<std::int64_t, 3>& m, int o) const {
+        return ahead(o)[index(m)];
     }
+    /// distance_ahead of every macrocell in octant o (index order), built
+    /// on first use: a frame needs the octants its rays travel in only.
+    [[nodiscard]] const std::uint8_t* ahead(int o) const;
 
     /// A box of macrocells.
     struct Box {
@@ -170,10 +175,11 @@ public:
     }
 
 private:
+    friend class RunFinder;  // reads ahead() by index()
     /// Macrocells whose node range [lo, hi] satisfies empty(lo, hi) are empty.
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
-    void build_ahead(int threads);
+    void build_ahead(int o, std::vector<std::uint8_t>& out) const;
     void find_border();
     [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
         return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
@@ -188,8 +194,12 @@ private:
     std::array<double, 3> node_hi_{};     // nodes_ − 1
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
     std::vector<std::uint8_t> empty_;     // per macrocell: 1 where empty
-    std::vector<std::uint8_t> ahead_;     // distance_ahead: 8 grids like empty_, one per octant
-    std::vector<std::uint32_t> border_;   // non-empty macrocells next to an empty one or the grid's edge
+    struct Octants {                      // distance_ahead per octant, built once on demand
+        std::array<std::once_flag, 8> once;
+        std::array<std::vector<std::uint8_t>, 8> grid;
+    };
+    std::shared_ptr<Octants> ahead_ = std::make_shared<Octants>();  // shared by copies
+    std::vector<std::uint32_t> border_;  // non-empty macrocells next to an empty one or the grid's edge
     bool any_ = false;
     bool joins_empty_ = false;
 };
@@ -272,7 +282,7 @@ public:
         const auto m = macrocell_of(j);
         const int o = dir > 0 ? octant_fwd_ : octant_back_;
         // the box ahead of the ray that holds only macrocells of m's kind
-        const EmptySpace::Box b = es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o);
+        const EmptySpace::Box b = es_.box_ahead(m, ahead(dir)[es_.index(m)] - 1, o);
         if (es_.empty(m) || exact) return {last_in(b, j, dir, limit), es_.empty(m)};
         const std::int64_t k = estimated_last(b, j, dir, limit);
         if (k != limit) remember(k + dir);  // where the next run starts, long before it is asked
@@ -290,7 +300,7 @@ public:
         while (k != limit) {
             const auto m = macrocell_of(k + dir);
             if (!es_.empty(m)) break;
-            k = last_in(es_.box_ahead(m, es_.distance_ahead(m, o) - 1, o), k + dir, dir, limit);
+            k = last_in(es_.box_ahead(m, ahead(dir)[es_.index(m)] - 1, o), k + dir, dir, limit);
         }
         return {k, true};
     }
@@ -328,6 +338,12 @@ private:
             k -= dir;
         }
     }
+    // distance_ahead in the octant of direction dir (fetched once).
+    [[nodiscard]] FATHOM_INLINE const std::uint8_t* ahead(int dir) const {
+        const std::uint8_t*& a = dir > 0 ? ahead_fwd_ : ahead_back_;
+        if (a == nullptr) a = es_.ahead(dir > 0 ? octant_fwd_ : octant_back_);
+        return a;
+    }
     // The macrocell of sample j's computed position (remembered or not).
     [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell_of(std::int64_t j) const {
         return j == next_j_ ? next_m_ : es_.macrocell(g_.at(j));
@@ -349,6 +365,8 @@ private:
     // Samples j ≤ before_ or ≥ after_ lie in empty macrocells.
     std::int64_t before_ = -kNever, after_ = kNever;
     // The macrocell of sample next_j_, where the next run likely starts.
+    mutable const std::uint8_t* ahead_fwd_ = nullptr;
+    mutable const std::uint8_t* ahead_back_ = nullptr;
     mutable std::int64_t next_j_ = kNever;
     mutable std::array<std::int64_t, 3> next_m_{};
 };

@@ -28,7 +28,8 @@ struct Renderer::Impl {
     Rgb bg{};
     EmptySpace empty_space;
     simd::FlatFunction flat_sigma, flat_color;
-    simd::BatchSource batch;  // batch.data == nullptr: no SIMD
+    simd::BatchSource batch;                  // batch.data == nullptr: no SIMD
+    std::vector<std::uint32_t> active_cells;  // batch.active
     ShadeSetup shade;
     Volume gradients;  // precomputed node gradients (GradientSource::precomputed)
     Tracer tracer;
