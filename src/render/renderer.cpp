@@ -219,11 +219,12 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
 
 std::uint64_t Renderer::count_segments(const Camera& camera) const {
     const RenderSettings& s = impl_->s;
+    const PixelRays rays(camera, s.width, s.height);
     std::uint64_t total = 0;
     for (int y = 0; y < s.height; ++y)
         for (int x = 0; x < s.width; ++x) {
             RaySpan span;
-            if (impl_->span_of(camera.generate(x, y, s.width, s.height), span))
+            if (impl_->span_of(rays(x, y), span))
                 total += static_cast<std::uint64_t>(segment_count(span.length(), impl_->h));
         }
     return total;
