@@ -5,8 +5,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
-#include <thread>
 #include <type_traits>
+
+#include "core/parallel.h"
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "integrate/simd_classify.cpp"
@@ -321,58 +322,43 @@ std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) 
             const T* data = v.data<T>();
             // integers: !(v < e) ⇔ v ≥ ⌈e⌉ (e finite), clamped to what 32 bits hold
             const auto at_least = static_cast<std::int32_t>(std::clamp(std::ceil(e), -0x1p31, 0x1p31 - 1.0));
-            bits.assign(static_cast<std::size_t>(bx * by * bz / 32 + 2), 0u);  // a word to spare for gathers
-            // block slabs (fixed z) over threads; a word may span two slabs:
-            // one atomic or per word
-            std::atomic<std::int64_t> next{0};
-            auto worker = [&] {
-                std::vector<std::uint8_t> col(static_cast<std::size_t>(n[0]));
-                for (std::int64_t k = next++; k < bz; k = next++)
-                    for (std::int64_t j = 0; j < by; ++j) {
-                        // per x: some node of rows y = 2j … 2j + 2, z = 2k … 2k + 2 is not below e
-                        std::fill(col.begin(), col.end(), std::uint8_t{0});
-                        for (std::int64_t z = 2 * k; z <= std::min(2 * k + 2, n[2] - 1); ++z)
-                            for (std::int64_t y = 2 * j; y <= std::min(2 * j + 2, n[1] - 1); ++y) {
-                                const T* row = data + n[0] * (y + n[1] * z);
-                                if constexpr (std::is_integral_v<T>) {  // v ≥ ⌈e⌉, in T's range
-                                    for (std::int64_t x = 0; x < n[0]; ++x)
-                                        col[static_cast<std::size_t>(x)] |= static_cast<std::uint8_t>(
-                                            static_cast<std::int32_t>(row[x]) >= at_least);
-                                } else {
-                                    for (std::int64_t x = 0; x < n[0]; ++x)
-                                        col[static_cast<std::size_t>(x)] |=
-                                            static_cast<std::uint8_t>(!(static_cast<double>(row[x]) < e));
-                                }
-                            }
-                        const std::int64_t base = bx * (j + by * k);
-                        std::int64_t word = base >> 5;
-                        std::uint32_t acc = 0;
-                        auto flush = [&] {
-                            if (acc != 0)
-                                std::atomic_ref<std::uint32_t>(bits[static_cast<std::size_t>(word)])
-                                    .fetch_or(acc, std::memory_order_relaxed);
-                            acc = 0;
-                        };
-                        for (std::int64_t i = 0; i < bx; ++i) {  // block i: nodes x = 2i … 2i + 2
-                            const std::int64_t b = base + i;
-                            if ((b >> 5) != word) {
-                                flush();
-                                word = b >> 5;
-                            }
-                            bool on = false;
-                            for (std::int64_t x = 2 * i; x <= std::min(2 * i + 2, n[0] - 1); ++x)
-                                on = on || col[static_cast<std::size_t>(x)] != 0;
-                            if (on) acc |= 1u << (b & 31);
-                        }
-                        flush();
-                    }
+            auto reaches = [&](T x) {
+                if constexpr (std::is_integral_v<T>) return static_cast<std::int32_t>(x) >= at_least;
+                return !(static_cast<double>(x) < e);
             };
-            const int nt =
-                threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-            std::vector<std::thread> pool;
-            for (int i = 1; i < nt; ++i) pool.emplace_back(worker);
-            worker();
-            for (auto& t : pool) t.join();
+            bits.assign(static_cast<std::size_t>(bx * by * bz / 32 + 2), 0u);  // a word to spare for gathers
+            // Block rows (j, k) over threads; a word may span two rows: one
+            // atomic or per word.
+            parallel_items(by * bz, threads, [&](std::int64_t row_index) {
+                const std::int64_t j = row_index % by, k = row_index / by;
+                // col[x]: some node of rows y = 2j … 2j + 2, z = 2k … 2k + 2 at x is not below e
+                std::vector<std::uint8_t> col(static_cast<std::size_t>(n[0]), 0);
+                for (std::int64_t z = 2 * k; z <= std::min(2 * k + 2, n[2] - 1); ++z)
+                    for (std::int64_t y = 2 * j; y <= std::min(2 * j + 2, n[1] - 1); ++y) {
+                        const T* row = data + n[0] * (y + n[1] * z);
+                        for (std::int64_t x = 0; x < n[0]; ++x)
+                            col[static_cast<std::size_t>(x)] |= static_cast<std::uint8_t>(reaches(row[x]));
+                    }
+                const std::int64_t base = bx * row_index;  // block (0, j, k)
+                std::int64_t word = base >> 5;
+                std::uint32_t acc = 0;
+                auto flush = [&] {
+                    if (acc != 0)
+                        std::atomic_ref<std::uint32_t>(bits[static_cast<std::size_t>(word)])
+                            .fetch_or(acc, std::memory_order_relaxed);
+                    acc = 0;
+                };
+                for (std::int64_t i = 0; i < bx; ++i) {  // block i: nodes x = 2i … 2i + 2
+                    const std::int64_t b = base + i;
+                    if ((b >> 5) != word) {
+                        flush();
+                        word = b >> 5;
+                    }
+                    const auto* c = col.data() + 2 * i;
+                    if ((c[0] | c[1] | (2 * i + 2 < n[0] ? c[2] : 0)) != 0) acc |= 1u << (b & 31);
+                }
+                flush();
+            });
         }
     });
     return bits;

@@ -5,7 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <thread>
+
+#include "core/parallel.h"
 
 namespace fathom {
 namespace {
@@ -29,36 +30,28 @@ std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<
     std::vector<std::uint8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
     visit_dtype(v.dtype(), [&]<class T>(T*) {
         const T* data = v.data<T>();
-        std::atomic<std::int64_t> next{0};
-        auto worker = [&] {
-            for (std::int64_t mz = next++; mz < md[2]; mz = next++) {
-                const std::int64_t z0 = mz * cells, z1 = std::min(z0 + cells, n[2] - 1);
-                for (std::int64_t my = 0; my < md[1]; ++my) {
-                    const std::int64_t y0 = my * cells, y1 = std::min(y0 + cells, n[1] - 1);
-                    for (std::int64_t mx = 0; mx < md[0]; ++mx) {
-                        const std::int64_t x0 = mx * cells, x1 = std::min(x0 + cells, n[0] - 1);
-                        Range r;
-                        for (std::int64_t z = z0; z <= z1; ++z)
-                            for (std::int64_t y = y0; y <= y1; ++y) {
-                                const T* row = data + (n[0] * (y + n[1] * z)) * comps;
-                                for (std::int64_t x = x0; x <= x1; ++x) {
-                                    const double s = static_cast<double>(row[x * comps]);
-                                    if (s != s) r.nan = true;
-                                    r.lo = std::min(r.lo, s);
-                                    r.hi = std::max(r.hi, s);
-                                }
+        parallel_items(md[2], threads, [&](std::int64_t mz) {  // macrocell slabs (fixed z)
+            const std::int64_t z0 = mz * cells, z1 = std::min(z0 + cells, n[2] - 1);
+            for (std::int64_t my = 0; my < md[1]; ++my) {
+                const std::int64_t y0 = my * cells, y1 = std::min(y0 + cells, n[1] - 1);
+                for (std::int64_t mx = 0; mx < md[0]; ++mx) {
+                    const std::int64_t x0 = mx * cells, x1 = std::min(x0 + cells, n[0] - 1);
+                    Range r;
+                    for (std::int64_t z = z0; z <= z1; ++z)
+                        for (std::int64_t y = y0; y <= y1; ++y) {
+                            const T* row = data + (n[0] * (y + n[1] * z)) * comps;
+                            for (std::int64_t x = x0; x <= x1; ++x) {
+                                const double s = static_cast<double>(row[x * comps]);
+                                if (s != s) r.nan = true;
+                                r.lo = std::min(r.lo, s);
+                                r.hi = std::max(r.hi, s);
                             }
-                        const bool e = !r.nan && empty(r.lo, r.hi);  // NaN nodes: never empty
-                        out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = e ? 1 : 0;
-                    }
+                        }
+                    const bool e = !r.nan && empty(r.lo, r.hi);  // NaN nodes: never empty
+                    out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = e ? 1 : 0;
                 }
             }
-        };
-        const int nt = std::max(1, std::min<int>(threads, static_cast<int>(md[2])));
-        std::vector<std::thread> pool;
-        for (int i = 1; i < nt; ++i) pool.emplace_back(worker);
-        worker();
-        for (auto& t : pool) t.join();
+        });
     });
     return out;
 }
@@ -67,10 +60,6 @@ std::array<std::int64_t, 3> macro_dims(const Volume& v, int shift) {
     std::array<std::int64_t, 3> md{};
     for (int a = 0; a < 3; ++a) md[a] = ((v.dims()[a] - 2) >> shift) + 1;  // n − 1 cells, rounded up
     return md;
-}
-
-int resolve_threads(int threads) {
-    return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
 }
 
 }  // namespace
@@ -82,7 +71,7 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     es.nodes_ = v.dims();
     for (int a = 0; a < 3; ++a) es.node_hi_[a] = static_cast<double>(es.nodes_[a] - 1);
     es.dims_ = macro_dims(v, shift);
-    es.empty_ = classify_macrocells(v, es.dims_, shift, resolve_threads(threads), empty);
+    es.empty_ = classify_macrocells(v, es.dims_, shift, threads, empty);
     es.any_ = std::find(es.empty_.begin(), es.empty_.end(), std::uint8_t{1}) != es.empty_.end();
     es.find_border();
     return es;
@@ -185,16 +174,6 @@ float round_float(double x, bool down) {
     if (down && static_cast<double>(f) > x) return std::nextafter(f, -INFINITY);
     if (!down && static_cast<double>(f) < x) return std::nextafter(f, INFINITY);
     return f;
-}
-
-/// Runs f(begin, end) over [0, n) in `threads` contiguous chunks.
-template <class F>
-void parallel_chunks(std::int64_t n, int threads, F&& f) {
-    const int nt = static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(threads, n)));
-    std::vector<std::thread> pool;
-    for (int i = 1; i < nt; ++i) pool.emplace_back([&, i] { f(n * i / nt, n * (i + 1) / nt); });
-    f(0, n / nt);
-    for (auto& t : pool) t.join();
 }
 
 }  // namespace
@@ -312,13 +291,12 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
     std::vector<Footprint> boxes;
     for (std::size_t c0 = 0; c0 < border_.size(); c0 += kChunk) {
         boxes.resize(std::min(kChunk, border_.size() - c0));
-        parallel_chunks(static_cast<std::int64_t>(boxes.size()), resolve_threads(threads),
-                        [&](std::int64_t b0, std::int64_t b1) {
-                            for (std::int64_t b = b0; b < b1; ++b)
-                                boxes[static_cast<std::size_t>(b)] =
-                                    project(c0 + static_cast<std::size_t>(b));
-                        });
-        parallel_chunks(height, resolve_threads(threads), [&](std::int64_t r0, std::int64_t r1) {
+        parallel_chunks(
+            static_cast<std::int64_t>(boxes.size()), threads, [&](std::int64_t b0, std::int64_t b1) {
+                for (std::int64_t b = b0; b < b1; ++b)
+                    boxes[static_cast<std::size_t>(b)] = project(c0 + static_cast<std::size_t>(b));
+            });
+        parallel_chunks(height, threads, [&](std::int64_t r0, std::int64_t r1) {
             for (const Footprint& f : boxes) {
                 const int ya = std::max<int>(f.y0, static_cast<int>(r0)),
                           yb = std::min<int>(f.y1, static_cast<int>(r1) - 1);
