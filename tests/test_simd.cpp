@@ -82,18 +82,23 @@ TEST(Simd, EveryTargetIsBitIdenticalToScalar) {
                         s.simd = false;
                         const Image scalar = Renderer(v, tf(associated), s).render(cam);
                         s.simd = true;
-                        for (auto t : targets) {
-                            simd::force_target(t);
-                            EXPECT_TRUE(same(Renderer(v, tf(associated), s).render(cam), scalar))
-                                << simd::active_target() << " " << dtype_name(type) << " " << to_string(kind)
-                                << " " << to_string(order) << " " << to_string(s.model)
-                                << (associated ? " associated" : "");
-                            ++compared;
+                        // without skipping, the zero split runs over the whole ray
+                        for (bool skip : {true, false}) {
+                            s.skip_empty = skip;
+                            for (auto t : targets) {
+                                simd::force_target(t);
+                                EXPECT_TRUE(same(Renderer(v, tf(associated), s).render(cam), scalar))
+                                    << simd::active_target() << " " << dtype_name(type) << " "
+                                    << to_string(kind) << " " << to_string(order) << " " << to_string(s.model)
+                                    << (associated ? " associated" : "") << (skip ? "" : " no skipping");
+                                ++compared;
+                            }
                         }
+                        s.skip_empty = true;
                         simd::force_target(0);
                     }
     }
-    EXPECT_GE(compared, 80);
+    EXPECT_GE(compared, 160);
 }
 
 TEST(Simd, DispatchesToTheBestTargetByDefault) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <optional>
 
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
@@ -61,21 +62,21 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
     DepthTrack depth{span.t_near, delta};
     DepthTrack* track = s.depth_outputs ? &depth : nullptr;
     const EmptySpace* es = acc.es;
-    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
-    // Samples in an empty macrocell give (1, 0): skip each run of them;
-    // evaluate each run in a non-empty one without further lookups.
-    const RunFinder runs(*es, grid);
     if constexpr (Medium::kHasScalar && !Medium::kShaded) {
         if (acc.simd != nullptr) {
-            // With SIMD, a run in a non-empty macrocell is classified a batch
-            // at a time, and the samples there whose scalar lies below the
-            // medium's zero range (BatchOut::zero) are (1, 0) too: skipped.
-            bool in_run = false;  // i lies in the evaluated run ending at run_end
+            // With SIMD, samples are classified a batch at a time, and those
+            // whose scalar lies below the medium's zero range (BatchOut::zero)
+            // give (1, 0): skipped. With skipping, only the runs in non-empty
+            // macrocells are classified (a run's samples in an empty one give
+            // (1, 0) too); without, the whole ray is one run.
+            const std::optional<RunFinder> runs =
+                es != nullptr ? std::optional<RunFinder>(std::in_place, *es, grid) : std::nullopt;
+            bool in_run = es == nullptr;  // i lies in the evaluated run ending at run_end
             return composite(
                 n, s.order, s.termination, bg, segment,
                 [&](std::int64_t i, int dir) -> std::int64_t {
                     if (!in_run || dir * (run_end - i) < 0) {
-                        const auto run = runs.run(i, dir, dir > 0 ? n : 1);
+                        const auto run = runs->run(i, dir, dir > 0 ? n : 1);
                         if (run.empty) return dir * (run.last - i) + 1;
                         run_end = run.last;
                         in_run = true;
@@ -88,6 +89,10 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
                 track);
         }
     }
+    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
+    // Samples in an empty macrocell give (1, 0): skip each run of them;
+    // evaluate each run in a non-empty one without further lookups.
+    const RunFinder runs(*es, grid);
     return composite(
         n, s.order, s.termination, bg, segment,
         [&](std::int64_t i, int dir) {

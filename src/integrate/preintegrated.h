@@ -20,6 +20,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 #include "integrate/accumulator.h"
 #include "integrate/ray_span.h"
@@ -249,16 +250,16 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     };
     DepthTrack depth{span.t_near, delta};
     DepthTrack* track = s.depth_outputs ? &depth : nullptr;
-    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
     // Segments whose two ends lie in one box of empty macrocells are (1, 0);
     // those with an end in a non-empty one are evaluated without further
     // lookups.
     // Where empty macrocells join (EmptySpace::joins_empty), ends in
     // different boxes of them bound empty segments too.
-    const RunFinder runs(*es, grid);
-    const bool joins = es->joins_empty();
+    const std::optional<RunFinder> runs =
+        es != nullptr ? std::optional<RunFinder>(std::in_place, *es, grid) : std::nullopt;
+    const bool joins = es != nullptr && es->joins_empty();
     auto find = [&](std::int64_t j, int dir, std::int64_t limit) {
-        return joins ? runs.run_through(j, dir, limit) : runs.run(j, dir, limit);
+        return joins ? runs->run_through(j, dir, limit) : runs->run(j, dir, limit);
     };
     // The next run of segments from i: k > 0 to skip, −k to evaluate
     // (composite's convention); sets run_end, the last end it needs.
@@ -281,8 +282,10 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             // With SIMD, an evaluated run is split by its batch of ends: a
             // segment whose two ends both lie below the medium's zero range
             // has a ramp in that range, so it is (1, 0): skipped too.
-            std::int64_t seg_end = 0;  // the evaluated run's last segment
-            bool in_run = false;
+            // Without skipping, the whole ray is one run.
+            // The evaluated run's last segment, and whether i lies in it.
+            std::int64_t seg_end = s.order == Order::front_to_back ? n : 1;
+            bool in_run = es == nullptr;
             return composite(
                 n, s.order, s.termination, bg, segment,
                 [&](std::int64_t i, int dir) -> std::int64_t {
@@ -302,6 +305,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
                 track);
         }
     }
+    if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
     return composite(n, s.order, s.termination, bg, segment, next_run, track);
 }
 

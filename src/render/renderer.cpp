@@ -71,7 +71,7 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
             volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color, zero_below(impl_->tf, impl_->s.model)};
         const bool point_sampled = impl_->s.integrator == IntegratorKind::alpha ||
                                    impl_->s.integrator == IntegratorKind::riemann;  // classify_batch's users
-        if (point_sampled && std::isfinite(impl_->batch.zero_below)) {
+        if (impl_->s.skip_empty && point_sampled && std::isfinite(impl_->batch.zero_below)) {
             impl_->active_cells = simd::active_cells(volume, impl_->batch.zero_below, impl_->s.threads);
             if (!impl_->active_cells.empty()) impl_->batch.active = impl_->active_cells.data();
         }
