@@ -283,10 +283,11 @@ struct PointSegments {
     struct Local {
         typename Med::Sample s;
         double sa, w;  // σ_a after the model; the radiance weight (δ or (1 − e^{−σδ})/σ)
+        double t;      // the segment's transmittance (alpha: 1 − α, as the Renderer)
         Rgb src;       // g after the model
     };
     [[nodiscard]] Local local(std::int64_t i) const {
-        Local l{med.at(grid.at(i)), 0, 0, {}};
+        Local l{med.at(grid.at(i)), 0, 0, 0, {}};
         // As ScalarMedium::classify / GridMedium::at, then apply_model.
         l.src = l.s.color;
         if (!med.associated())
@@ -296,8 +297,10 @@ struct PointSegments {
         if constexpr (kAlpha) {
             const double alpha = -std::expm1(-l.sa * delta);
             l.w = l.sa > 0.0 ? alpha / l.sa : delta;
+            l.t = 1.0 - alpha;
         } else {
             l.w = delta;
+            l.t = std::exp(-l.sa * delta);
         }
         return l;
     }
@@ -308,7 +311,7 @@ struct PointSegments {
     SegmentValue value(std::int64_t i) const {
         last = local(i);
         last_i = i;
-        SegmentValue v{std::exp(-last.sa * delta), {}};
+        SegmentValue v{last.t, {}};
         for (int c = 0; c < 3; ++c) v.C[c] = last.src[c] * last.w;
         return v;
     }
