@@ -13,6 +13,7 @@
 #include "fathom/differentiable.h"
 #include "fathom/error.h"
 
+#include "core/parallel.h"
 #include "diff/dual.h"
 #include "integrate/preint_piece.h"
 #include "integrate/preintegrated.h"
@@ -726,9 +727,8 @@ struct DiffRenderer::Impl {
         });
     }
     [[nodiscard]] int threads(std::size_t work) const {
-        int n = base.s.threads > 0 ? base.s.threads
-                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-        return static_cast<int>(std::clamp<std::size_t>(work, 1, static_cast<std::size_t>(n)));
+        return static_cast<int>(
+            std::clamp<std::size_t>(work, 1, static_cast<std::size_t>(resolve_threads(base.s.threads))));
     }
     /// Runs f(begin, end, thread) over `count` items in contiguous blocks.
     template <class F>

@@ -15,6 +15,8 @@
 #include "fathom/render.h"
 #include "fathom/views.h"
 
+#include "core/parallel.h"
+
 namespace fathom::fit {
 
 /// Render settings of a fit: its integrator, step, background and threads.
@@ -124,7 +126,7 @@ void parallel_blocks(std::size_t count, int threads, F&& f) {
 
 /// The thread count a settings' `threads` (0: all cores) means.
 inline int thread_count(int threads) {
-    return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    return resolve_threads(threads);
 }
 
 /// Mean PSNR over a view set's images (RGB over the background) of what

@@ -1,8 +1,7 @@
 // node_gradients: the precomputed gradient volume (GradientSource::precomputed).
 #include <algorithm>
-#include <thread>
-#include <vector>
 
+#include "core/parallel.h"
 #include "render/shading.h"
 
 namespace fathom {
@@ -42,12 +41,7 @@ Volume node_gradients(const Volume& v, const Mat3& world_to_index, int threads) 
                     }
         });
     };
-    int n = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    n = static_cast<int>(std::min<std::int64_t>(n, nz));
-    std::vector<std::thread> pool;
-    for (int t = 1; t < n; ++t) pool.emplace_back(slabs, nz * t / n, nz * (t + 1) / n);
-    slabs(0, nz / n);
-    for (auto& th : pool) th.join();
+    parallel_chunks(nz, threads, slabs);
     return g;
 }
 

@@ -11,6 +11,7 @@
 #include "fathom/log.h"
 #include "fathom/render.h"
 
+#include "core/parallel.h"
 #include "render/empty_space.h"
 #include "render/renderer_impl.h"
 
@@ -209,8 +210,7 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
             next = tiles;
         }
     };
-    int n = s.threads > 0 ? s.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    n = std::min(n, tiles);
+    const int n = std::min(resolve_threads(s.threads), tiles);
     std::vector<std::thread> pool;
     for (int i = 1; i < n; ++i) pool.emplace_back(worker);
     worker();

@@ -21,6 +21,7 @@
 #include "fathom/error.h"
 #include "fathom/preintegration.h"
 
+#include "core/parallel.h"
 #include "integrate/preintegrated.h"
 
 namespace fathom {
@@ -146,8 +147,7 @@ PreintegrationTable build_preintegration_table(const Classifier& tf, double v_lo
         std::vector<Segment> cells, windows;
         for (int d = next++; d < size; d = next++) fill_distance(t, cp, d, cells, windows);
     };
-    int nt = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    nt = std::min(nt, size - 1);
+    const int nt = std::min(resolve_threads(threads), size - 1);
     std::vector<std::thread> pool;
     for (int i = 1; i < nt; ++i) pool.emplace_back(worker);
     worker();
