@@ -127,10 +127,13 @@ template <Model M>
 class RampIntegral {
 public:
     RampIntegral(double delta, bool full) : delta_(delta), full_(full) {}
-    void add(RampPiece p) {
-        if constexpr (M == Model::absorption) p.g = {};
-        if constexpr (M == Model::emission) p.s0 = p.s1 = 0.0;
-        const auto r = preint::integrate_piece(p.dl * delta_, p.s0, p.s1, p.g, full_);
+    // By reference: a copy of the piece (stored a double at a time, reloaded
+    // 16 bytes at a time) stalled on store forwarding.
+    void add(const RampPiece& p) {
+        static constexpr preint::Quadratic kNoSource{};
+        const bool absorb = M != Model::emission;
+        const auto r = preint::integrate_piece(p.dl * delta_, absorb ? p.s0 : 0.0, absorb ? p.s1 : 0.0,
+                                               M == Model::absorption ? kNoSource : p.g, full_);
         for (int k = 0; k < 3; ++k) E_[k] += (full_ ? T_ : 1.0) * r.radiance[k];
         depth_ += r.depth;
         T_ = std::exp(-depth_);
