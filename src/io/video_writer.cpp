@@ -1,9 +1,13 @@
 // VideoWriter: MP4 (H.264) and animated GIF through FFmpeg's libraries
-// (libavformat, libavcodec, libswscale), when the build found them
-// (FATHOM_HAVE_FFMPEG); otherwise every use is a clear error.
+// (libavformat, libavcodec, libswscale), when the build found their headers
+// (FATHOM_HAVE_FFMPEG); otherwise every use is a clear error. The libraries
+// are loaded (dlopen) when the first video is opened, not linked: they pull
+// in about 120 shared libraries (every codec FFmpeg was built with), which
+// every fathom process would otherwise map and relocate at start-up.
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <mutex>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -23,6 +27,7 @@ extern "C" {
 #include <libavutil/opt.h>
 #include <libswscale/swscale.h>
 }
+#include <dlfcn.h>
 #endif
 
 namespace fathom {
@@ -139,8 +144,94 @@ Quantized quantize(const std::vector<std::uint8_t>& rgb) {
 
 #ifdef FATHOM_HAVE_FFMPEG
 
+namespace {
+
+// The FFmpeg functions the writer calls, by library.
+#define FATHOM_FFMPEG_FUNCTIONS(X)              \
+    X(avutil, av_frame_alloc)                   \
+    X(avutil, av_frame_free)                    \
+    X(avutil, av_frame_get_buffer)              \
+    X(avutil, av_frame_make_writable)           \
+    X(avutil, av_log_set_level)                 \
+    X(avutil, av_opt_set)                       \
+    X(avutil, av_strerror)                      \
+    X(avcodec, av_packet_alloc)                 \
+    X(avcodec, av_packet_free)                  \
+    X(avcodec, av_packet_rescale_ts)            \
+    X(avcodec, avcodec_alloc_context3)          \
+    X(avcodec, avcodec_find_encoder)            \
+    X(avcodec, avcodec_find_encoder_by_name)    \
+    X(avcodec, avcodec_free_context)            \
+    X(avcodec, avcodec_open2)                   \
+    X(avcodec, avcodec_parameters_from_context) \
+    X(avcodec, avcodec_receive_packet)          \
+    X(avcodec, avcodec_send_frame)              \
+    X(avformat, av_interleaved_write_frame)     \
+    X(avformat, av_write_trailer)               \
+    X(avformat, avformat_alloc_output_context2) \
+    X(avformat, avformat_free_context)          \
+    X(avformat, avformat_new_stream)            \
+    X(avformat, avformat_write_header)          \
+    X(avformat, avio_closep)                    \
+    X(avformat, avio_open)                      \
+    X(swscale, sws_freeContext)                 \
+    X(swscale, sws_getContext)                  \
+    X(swscale, sws_scale)
+
+struct Ffmpeg {
+#define FATHOM_FFMPEG_POINTER(lib, name) decltype(&::name) name = nullptr;
+    FATHOM_FFMPEG_FUNCTIONS(FATHOM_FFMPEG_POINTER)
+#undef FATHOM_FFMPEG_POINTER
+};
+
+/// The libraries of the FFmpeg whose headers fathom was built with (by their
+/// major versions), loaded on first use and kept; throws, naming `subject`,
+/// when one cannot be loaded.
+const Ffmpeg& ffmpeg(const std::string& subject) {
+    static Ffmpeg f;
+    static std::string failure;
+    static std::once_flag once;
+    std::call_once(once, [] {
+        const std::array<std::pair<const char*, int>, 4> libs{{{"avutil", LIBAVUTIL_VERSION_MAJOR},
+                                                               {"swscale", LIBSWSCALE_VERSION_MAJOR},
+                                                               {"avcodec", LIBAVCODEC_VERSION_MAJOR},
+                                                               {"avformat", LIBAVFORMAT_VERSION_MAJOR}}};
+        std::array<void*, 4> handle{};
+        for (std::size_t i = 0; i < libs.size(); ++i) {
+            const std::string soname =
+                "lib" + std::string(libs[i].first) + ".so." + std::to_string(libs[i].second);
+            handle[i] = dlopen(soname.c_str(), RTLD_NOW | RTLD_LOCAL);
+            if (!handle[i]) {
+                const char* why = dlerror();
+                failure = "cannot load FFmpeg's " + soname + (why ? std::string(": ") + why : std::string());
+                return;
+            }
+        }
+        auto lookup = [&](std::string_view lib, const char* name) -> void* {
+            for (std::size_t i = 0; i < libs.size(); ++i)
+                if (lib == libs[i].first) return dlsym(handle[i], name);
+            return nullptr;
+        };
+        Ffmpeg g;
+#define FATHOM_FFMPEG_LOOKUP(lib, name)                                                    \
+    g.name = reinterpret_cast<decltype(&::name)>(lookup(#lib, #name));                     \
+    if (!g.name) {                                                                         \
+        failure = "FFmpeg's lib" #lib " has no function " #name " (a different version?)"; \
+        return;                                                                            \
+    }
+        FATHOM_FFMPEG_FUNCTIONS(FATHOM_FFMPEG_LOOKUP)
+#undef FATHOM_FFMPEG_LOOKUP
+        f = g;
+    });
+    if (!failure.empty()) throw Error(subject, failure);
+    return f;
+}
+
+}  // namespace
+
 struct VideoWriter::State {
     fs::path path;
+    const Ffmpeg& ff;  // loaded before the file is created
     io::AtomicFile file;
     bool gif = false;
     int width = 0, height = 0;  // of the frames given
@@ -153,33 +244,33 @@ struct VideoWriter::State {
     std::int64_t next_pts = 0;
     bool finished = false;
 
-    explicit State(const fs::path& p) : path(p), file(p) {}
+    explicit State(const fs::path& p) : path(p), ff(ffmpeg(p.string())), file(p) {}
     ~State() {
-        if (sws) sws_freeContext(sws);
-        if (frame) av_frame_free(&frame);
-        if (packet) av_packet_free(&packet);
-        if (enc) avcodec_free_context(&enc);
+        if (sws) ff.sws_freeContext(sws);
+        if (frame) ff.av_frame_free(&frame);
+        if (packet) ff.av_packet_free(&packet);
+        if (enc) ff.avcodec_free_context(&enc);
         if (fmt) {
-            if (fmt->pb) avio_closep(&fmt->pb);
-            avformat_free_context(fmt);
+            if (fmt->pb) ff.avio_closep(&fmt->pb);
+            ff.avformat_free_context(fmt);
         }
     }
     [[noreturn]] void fail(const std::string& what, int err = 0) const {
         std::string reason = what;
         if (err < 0) {
             char buf[AV_ERROR_MAX_STRING_SIZE] = {};
-            av_strerror(err, buf, sizeof buf);
+            ff.av_strerror(err, buf, sizeof buf);
             reason += std::string(" (") + buf + ")";
         }
         throw Error(path.string(), reason);
     }
     void drain(bool flush) {
-        int rc = avcodec_send_frame(enc, flush ? nullptr : frame);
+        int rc = ff.avcodec_send_frame(enc, flush ? nullptr : frame);
         if (rc < 0) fail("the encoder refused a frame", rc);
-        while ((rc = avcodec_receive_packet(enc, packet)) >= 0) {
-            av_packet_rescale_ts(packet, enc->time_base, stream->time_base);
+        while ((rc = ff.avcodec_receive_packet(enc, packet)) >= 0) {
+            ff.av_packet_rescale_ts(packet, enc->time_base, stream->time_base);
             packet->stream_index = stream->index;
-            const int w = av_interleaved_write_frame(fmt, packet);
+            const int w = ff.av_interleaved_write_frame(fmt, packet);
             if (w < 0) fail("cannot write the video", w);
         }
         if (rc != AVERROR(EAGAIN) && rc != AVERROR_EOF) fail("encoding failed", rc);
@@ -197,26 +288,26 @@ VideoWriter::VideoWriter(const fs::path& path, int width, int height, int fps)
     if (ext != ".mp4" && ext != ".gif") s.fail("unknown video format '" + ext + "' (expected .mp4 or .gif)");
     if (width < 2 || height < 2) s.fail("a video needs frames of at least 2x2 pixels");
     if (fps < 1 || fps > 240) s.fail("frame rate " + std::to_string(fps) + " is outside 1..240");
-    av_log_set_level(AV_LOG_ERROR);
+    s.ff.av_log_set_level(AV_LOG_ERROR);
     s.gif = ext == ".gif";
     s.width = width;
     s.height = height;
     s.file.close();  // FFmpeg opens the temporary file by name
     const std::string tmp = s.file.temp_path().string();
-    int rc = avformat_alloc_output_context2(&s.fmt, nullptr, s.gif ? "gif" : "mp4", tmp.c_str());
+    int rc = s.ff.avformat_alloc_output_context2(&s.fmt, nullptr, s.gif ? "gif" : "mp4", tmp.c_str());
     if (rc < 0 || !s.fmt) s.fail("cannot set up the " + ext.substr(1) + " container", rc);
     const AVCodec* codec = nullptr;
     if (s.gif) {
-        codec = avcodec_find_encoder(AV_CODEC_ID_GIF);
+        codec = s.ff.avcodec_find_encoder(AV_CODEC_ID_GIF);
     } else {
-        codec = avcodec_find_encoder_by_name("libx264");
-        if (!codec) codec = avcodec_find_encoder(AV_CODEC_ID_MPEG4);
+        codec = s.ff.avcodec_find_encoder_by_name("libx264");
+        if (!codec) codec = s.ff.avcodec_find_encoder(AV_CODEC_ID_MPEG4);
     }
     if (!codec) s.fail("this FFmpeg has no " + std::string(s.gif ? "GIF" : "H.264 or MPEG-4") + " encoder");
-    s.stream = avformat_new_stream(s.fmt, nullptr);
-    s.enc = avcodec_alloc_context3(codec);
-    s.frame = av_frame_alloc();
-    s.packet = av_packet_alloc();
+    s.stream = s.ff.avformat_new_stream(s.fmt, nullptr);
+    s.enc = s.ff.avcodec_alloc_context3(codec);
+    s.frame = s.ff.av_frame_alloc();
+    s.packet = s.ff.av_packet_alloc();
     if (!s.stream || !s.enc || !s.frame || !s.packet) s.fail("out of memory");
     // yuv420p halves chroma: MP4 frames need even sizes.
     s.enc->width = s.gif ? width : width & ~1;
@@ -228,31 +319,31 @@ VideoWriter::VideoWriter(const fs::path& path, int width, int height, int fps)
     if (!s.gif) {
         s.enc->bit_rate = 0;
         if (std::string(codec->name) == "libx264") {
-            av_opt_set(s.enc->priv_data, "crf", "18", 0);
-            av_opt_set(s.enc->priv_data, "preset", "medium", 0);
+            s.ff.av_opt_set(s.enc->priv_data, "crf", "18", 0);
+            s.ff.av_opt_set(s.enc->priv_data, "preset", "medium", 0);
         } else {
             s.enc->bit_rate = static_cast<std::int64_t>(width) * height * fps / 4;
         }
     }
     if (s.fmt->oformat->flags & AVFMT_GLOBALHEADER) s.enc->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
-    rc = avcodec_open2(s.enc, codec, nullptr);
+    rc = s.ff.avcodec_open2(s.enc, codec, nullptr);
     if (rc < 0) s.fail(std::string("cannot open the ") + codec->name + " encoder", rc);
-    rc = avcodec_parameters_from_context(s.stream->codecpar, s.enc);
+    rc = s.ff.avcodec_parameters_from_context(s.stream->codecpar, s.enc);
     if (rc < 0) s.fail("cannot set the stream parameters", rc);
     s.stream->time_base = s.enc->time_base;
-    if (s.gif) av_opt_set(s.fmt->priv_data, "loop", "0", 0);  // loop forever
-    rc = avio_open(&s.fmt->pb, tmp.c_str(), AVIO_FLAG_WRITE);
+    if (s.gif) s.ff.av_opt_set(s.fmt->priv_data, "loop", "0", 0);  // loop forever
+    rc = s.ff.avio_open(&s.fmt->pb, tmp.c_str(), AVIO_FLAG_WRITE);
     if (rc < 0) s.fail("cannot open the file for writing", rc);
-    rc = avformat_write_header(s.fmt, nullptr);
+    rc = s.ff.avformat_write_header(s.fmt, nullptr);
     if (rc < 0) s.fail("cannot write the header", rc);
     s.frame->format = s.enc->pix_fmt;
     s.frame->width = s.enc->width;
     s.frame->height = s.enc->height;
-    rc = av_frame_get_buffer(s.frame, 0);
+    rc = s.ff.av_frame_get_buffer(s.frame, 0);
     if (rc < 0) s.fail("out of memory", rc);
     if (!s.gif) {
-        s.sws = sws_getContext(width, height, AV_PIX_FMT_RGB24, s.enc->width, s.enc->height,
-                               AV_PIX_FMT_YUV420P, SWS_BICUBIC, nullptr, nullptr, nullptr);
+        s.sws = s.ff.sws_getContext(width, height, AV_PIX_FMT_RGB24, s.enc->width, s.enc->height,
+                                    AV_PIX_FMT_YUV420P, SWS_BICUBIC, nullptr, nullptr, nullptr);
         if (!s.sws) s.fail("cannot set up the color conversion");
     }
 }
@@ -265,7 +356,7 @@ void VideoWriter::add(const Image& image) {
     if (image.width != s.width || image.height != s.height)
         s.fail("frame of " + std::to_string(image.width) + "x" + std::to_string(image.height) + " in a " +
                std::to_string(s.width) + "x" + std::to_string(s.height) + " video");
-    int rc = av_frame_make_writable(s.frame);
+    int rc = s.ff.av_frame_make_writable(s.frame);
     if (rc < 0) s.fail("out of memory", rc);
     const std::vector<std::uint8_t> rgb = rgb8(image);
     if (s.gif) {
@@ -277,7 +368,7 @@ void VideoWriter::add(const Image& image) {
     } else {
         const std::uint8_t* src[1] = {rgb.data()};
         const int stride[1] = {3 * s.width};
-        sws_scale(s.sws, src, stride, 0, s.height, s.frame->data, s.frame->linesize);
+        s.ff.sws_scale(s.sws, src, stride, 0, s.height, s.frame->data, s.frame->linesize);
     }
     s.frame->pts = s.next_pts++;
     s.drain(false);
@@ -288,9 +379,9 @@ void VideoWriter::finish() {
     if (s.finished) return;
     if (s.next_pts == 0) s.fail("a video needs at least one frame");
     s.drain(true);
-    const int rc = av_write_trailer(s.fmt);
+    const int rc = s.ff.av_write_trailer(s.fmt);
     if (rc < 0) s.fail("cannot write the trailer", rc);
-    avio_closep(&s.fmt->pb);
+    s.ff.avio_closep(&s.fmt->pb);
     s.finished = true;
     s.file.commit();
 }
