@@ -10,6 +10,8 @@
 #include <mutex>
 #include <numeric>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "fathom/error.h"
