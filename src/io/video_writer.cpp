@@ -10,14 +10,13 @@
 #include <mutex>
 #include <numeric>
 #include <string>
-#include <string_view>
-#include <utility>
 #include <vector>
 
 #include "fathom/error.h"
 #include "fathom/video.h"
 
 #include "io/atomic_file.h"
+#include "io/shared_library.h"
 #include "io/srgb.h"
 
 #ifdef FATHOM_HAVE_FFMPEG
@@ -29,7 +28,6 @@ extern "C" {
 #include <libavutil/opt.h>
 #include <libswscale/swscale.h>
 }
-#include <dlfcn.h>
 #endif
 
 namespace fathom {
@@ -188,44 +186,34 @@ struct Ffmpeg {
 
 /// The libraries of the FFmpeg whose headers fathom was built with (by their
 /// major versions), loaded on first use and kept; throws, naming `subject`,
-/// when one cannot be loaded.
+/// when one cannot be loaded (and tries again on the next call).
 const Ffmpeg& ffmpeg(const std::string& subject) {
     static Ffmpeg f;
-    static std::string failure;
     static std::once_flag once;
-    std::call_once(once, [] {
-        const std::array<std::pair<const char*, int>, 4> libs{{{"avutil", LIBAVUTIL_VERSION_MAJOR},
-                                                               {"swscale", LIBSWSCALE_VERSION_MAJOR},
-                                                               {"avcodec", LIBAVCODEC_VERSION_MAJOR},
-                                                               {"avformat", LIBAVFORMAT_VERSION_MAJOR}}};
-        std::array<void*, 4> handle{};
-        for (std::size_t i = 0; i < libs.size(); ++i) {
-            const std::string soname =
-                "lib" + std::string(libs[i].first) + ".so." + std::to_string(libs[i].second);
-            handle[i] = dlopen(soname.c_str(), RTLD_NOW | RTLD_LOCAL);
-            if (!handle[i]) {
-                const char* why = dlerror();
-                failure = "cannot load FFmpeg's " + soname + (why ? std::string(": ") + why : std::string());
-                return;
-            }
-        }
-        auto lookup = [&](std::string_view lib, const char* name) -> void* {
-            for (std::size_t i = 0; i < libs.size(); ++i)
-                if (lib == libs[i].first) return dlsym(handle[i], name);
-            return nullptr;
+    std::call_once(once, [&] {
+        auto soname = [](const char* lib, int major) {
+            return "lib" + std::string(lib) + ".so." + std::to_string(major);
         };
+        const std::string avutil = soname("avutil", LIBAVUTIL_VERSION_MAJOR),
+                          swscale = soname("swscale", LIBSWSCALE_VERSION_MAJOR),
+                          avcodec = soname("avcodec", LIBAVCODEC_VERSION_MAJOR),
+                          avformat = soname("avformat", LIBAVFORMAT_VERSION_MAJOR);
+        struct Lib {
+            const std::string& soname;
+            void* handle;
+        };
+        const Lib lib_avutil{avutil, io::load_library(avutil, "FFmpeg", subject)},
+            lib_swscale{swscale, io::load_library(swscale, "FFmpeg", subject)},
+            lib_avcodec{avcodec, io::load_library(avcodec, "FFmpeg", subject)},
+            lib_avformat{avformat, io::load_library(avformat, "FFmpeg", subject)};
         Ffmpeg g;
-#define FATHOM_FFMPEG_LOOKUP(lib, name)                                                    \
-    g.name = reinterpret_cast<decltype(&::name)>(lookup(#lib, #name));                     \
-    if (!g.name) {                                                                         \
-        failure = "FFmpeg's lib" #lib " has no function " #name " (a different version?)"; \
-        return;                                                                            \
-    }
+#define FATHOM_FFMPEG_LOOKUP(lib, name)           \
+    g.name = reinterpret_cast<decltype(&::name)>( \
+        io::library_function(lib_##lib.handle, #name, lib_##lib.soname, "FFmpeg", subject));
         FATHOM_FFMPEG_FUNCTIONS(FATHOM_FFMPEG_LOOKUP)
 #undef FATHOM_FFMPEG_LOOKUP
         f = g;
     });
-    if (!failure.empty()) throw Error(subject, failure);
     return f;
 }
 

@@ -11,6 +11,7 @@
 #include "fathom/error.h"
 #include "fathom/video.h"
 
+#include "io/shared_library.h"
 #include "test_util.h"
 
 using namespace fathom;
@@ -110,4 +111,20 @@ TEST(Video, ErrorsNameTheFileAndLeaveNothing) {
         dir / "z.gif", {"at least one frame"});
     for (const char* n : {"x.avi", "x.mp4", "y.mp4", "z.gif"}) EXPECT_FALSE(fs::exists(dir / n)) << n;
     EXPECT_TRUE(fs::is_empty(dir.path())) << "temporary files left behind";
+}
+
+// The libraries a video needs are loaded when it is opened (dlopen): a
+// missing one, or a missing function, is one error naming the file and the
+// library.
+TEST(Video, MissingLibrariesAreClearErrors) {
+    const fs::path file = "turntable.mp4";
+    expect_error([&] { io::load_library("libfathom-absent.so.1", "FFmpeg", file.string()); }, file,
+                 {"cannot load FFmpeg's libfathom-absent.so.1"});
+    void* libc = io::load_library("libc.so.6", "the C library", file.string());
+    EXPECT_NE(io::library_function(libc, "strlen", "libc.so.6", "the C library", file.string()), nullptr);
+    expect_error(
+        [&] {
+            io::library_function(libc, "fathom_absent_function", "libc.so.6", "the C library", file.string());
+        },
+        file, {"libc.so.6 has no function fathom_absent_function"});
 }
