@@ -730,29 +730,6 @@ struct DiffRenderer::Impl {
         return static_cast<int>(
             std::clamp<std::size_t>(work, 1, static_cast<std::size_t>(resolve_threads(base.s.threads))));
     }
-    /// Runs f(begin, end, thread) over `count` items in contiguous blocks.
-    template <class F>
-    void parallel_blocks(std::size_t count, int nthreads, F&& f) const {
-        std::exception_ptr failure;
-        std::mutex m;
-        auto work = [&](int t) {
-            try {
-                const std::size_t b =
-                    count * static_cast<std::size_t>(t) / static_cast<std::size_t>(nthreads);
-                const std::size_t e =
-                    count * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(nthreads);
-                f(b, e, t);
-            } catch (...) {
-                std::lock_guard lock(m);
-                if (!failure) failure = std::current_exception();
-            }
-        };
-        std::vector<std::thread> pool;
-        for (int t = 1; t < nthreads; ++t) pool.emplace_back(work, t);
-        work(0);
-        for (auto& th : pool) th.join();
-        if (failure) std::rethrow_exception(failure);
-    }
 };
 
 namespace {
@@ -942,7 +919,7 @@ std::vector<RayResult> DiffRenderer::forward(std::span<const Ray> rays,
                                              std::span<const double> offsets) const {
     check_offsets(rays, offsets);
     std::vector<RayResult> out(rays.size());
-    impl_->parallel_blocks(rays.size(), impl_->threads(rays.size()), [&](std::size_t b, std::size_t e, int) {
+    parallel_blocks(rays.size(), impl_->threads(rays.size()), [&](std::size_t b, std::size_t e, int) {
         for (std::size_t i = b; i < e; ++i)
             out[i] = impl_->forward(rays[i], offsets.empty() ? -1.0 : offsets[i]);
     });
@@ -958,18 +935,18 @@ void DiffRenderer::backward(std::span<const Ray> rays, std::span<const RayResult
         throw Error("backward", "rays, forward results and adjoints differ in number");
     const int nt = impl_->threads(rays.size());
     ThreadBuffers buf(g, nt, impl_->scratch);
-    impl_->parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
+    parallel_blocks(rays.size(), nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t i = b; i < e; ++i)
             impl_->backward(rays[i], forward[i], adjoints[i], buf[t], offsets.empty() ? -1.0 : offsets[i]);
     });
-    buf.reduce(nt, [&](std::size_t n, int threads, auto&& f) { impl_->parallel_blocks(n, threads, f); });
+    buf.reduce(nt, [&](std::size_t n, int threads, auto&& f) { parallel_blocks(n, threads, f); });
 }
 
 Image DiffRenderer::render(const Camera& camera) const {
     const RenderSettings& s = impl_->base.s;
     Image img(s.width, s.height);
     const auto count = static_cast<std::size_t>(s.width) * static_cast<std::size_t>(s.height);
-    impl_->parallel_blocks(count, impl_->threads(count), [&](std::size_t b, std::size_t e, int) {
+    parallel_blocks(count, impl_->threads(count), [&](std::size_t b, std::size_t e, int) {
         for (std::size_t k = b; k < e; ++k) {
             const int x = static_cast<int>(k % static_cast<std::size_t>(s.width));
             const int y = static_cast<int>(k / static_cast<std::size_t>(s.width));
@@ -992,7 +969,7 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
     impl_->check_sizes(g);
     const int nt = impl_->threads(count);
     ThreadBuffers buf(g, nt, impl_->scratch);
-    impl_->parallel_blocks(count, nt, [&](std::size_t b, std::size_t e, int t) {
+    parallel_blocks(count, nt, [&](std::size_t b, std::size_t e, int t) {
         for (std::size_t k = b; k < e; ++k) {
             const float* a = &adjoint[4 * k];
             if (a[0] == 0.0f && a[1] == 0.0f && a[2] == 0.0f && a[3] == 0.0f) continue;
@@ -1004,7 +981,7 @@ void DiffRenderer::backward(const Camera& camera, std::span<const float> adjoint
             impl_->backward(ray, fwd, {{a[0], a[1], a[2]}, a[3]}, buf[t], off);
         }
     });
-    buf.reduce(nt, [&](std::size_t n, int threads, auto&& f) { impl_->parallel_blocks(n, threads, f); });
+    buf.reduce(nt, [&](std::size_t n, int threads, auto&& f) { parallel_blocks(n, threads, f); });
 }
 
 }  // namespace fathom

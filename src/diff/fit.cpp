@@ -300,7 +300,7 @@ struct Fitter::Impl {
         const std::uint8_t* occ = occupied.data<std::uint8_t>();
         touched.resize(static_cast<std::size_t>(nt));
         std::vector<double> tv(static_cast<std::size_t>(nt), 0.0);
-        fit::parallel_blocks(g.density.size(), nt, [&](std::size_t b, std::size_t e, int t) {
+        parallel_blocks(g.density.size(), nt, [&](std::size_t b, std::size_t e, int t) {
             auto& mine = touched[static_cast<std::size_t>(t)];
             mine.clear();
             double share = 0;
@@ -326,7 +326,7 @@ struct Fitter::Impl {
         });
         double loss = mse;
         for (const double v : tv) loss += v;
-        fit::parallel_blocks(touched.size(), nt, [&](std::size_t b, std::size_t e, int) {
+        parallel_blocks(touched.size(), nt, [&](std::size_t b, std::size_t e, int) {
             for (std::size_t t = b; t < e; ++t)
                 for (const std::size_t n : touched[t]) {
                     step_d(xd[n], md[n], vd[n], g.density[n], s, 0.0, INFINITY);

@@ -103,27 +103,6 @@ void adam_update(T* x, T* m, T* v, const double* g, std::size_t n, double lr, lo
     for (std::size_t i = 0; i < n; ++i) step(x[i], m[i], v[i], g[i], scale, lo, hi);
 }
 
-/// Runs f(begin, end, thread) over [0, count) in `threads` contiguous blocks (thread 0 on the
-/// caller's); the first exception is rethrown.
-template <class F>
-void parallel_blocks(std::size_t count, int threads, F&& f) {
-    const auto nt = static_cast<std::size_t>(std::max(1, threads));
-    std::vector<std::exception_ptr> failure(nt);
-    auto work = [&](std::size_t t) {
-        try {
-            f(count * t / nt, count * (t + 1) / nt, static_cast<int>(t));
-        } catch (...) {
-            failure[t] = std::current_exception();
-        }
-    };
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < nt; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
-    for (const auto& e : failure)
-        if (e) std::rethrow_exception(e);
-}
-
 /// The thread count a settings' `threads` (0: all cores) means.
 inline int thread_count(int threads) {
     return resolve_threads(threads);
