@@ -5,10 +5,8 @@
 // points.
 #include <algorithm>
 #include <atomic>
-#include <exception>
 #include <mutex>
 #include <optional>
-#include <thread>
 
 #include "fathom/differentiable.h"
 #include "fathom/error.h"

@@ -296,7 +296,7 @@ struct Fitter::Impl {
         // gradient would be normalised by Adam into full-size steps at nodes
         // no ray constrains.) Node ranges over the threads: gradients first
         // (TV reads the values before any update), then steps.
-        const int nt = fit::thread_count(o.threads);
+        const int nt = resolve_threads(o.threads);
         const std::uint8_t* occ = occupied.data<std::uint8_t>();
         touched.resize(static_cast<std::size_t>(nt));
         std::vector<double> tv(static_cast<std::size_t>(nt), 0.0);

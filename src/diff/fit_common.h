@@ -6,9 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
-#include <exception>
 #include <random>
-#include <thread>
 #include <vector>
 
 #include "fathom/differentiable.h"
@@ -101,11 +99,6 @@ void adam_update(T* x, T* m, T* v, const double* g, std::size_t n, double lr, lo
                  double hi) {
     const AdamStep step(lr, t);
     for (std::size_t i = 0; i < n; ++i) step(x[i], m[i], v[i], g[i], scale, lo, hi);
-}
-
-/// The thread count a settings' `threads` (0: all cores) means.
-inline int thread_count(int threads) {
-    return resolve_threads(threads);
 }
 
 /// Mean PSNR over a view set's images (RGB over the background) of what

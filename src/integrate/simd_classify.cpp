@@ -327,12 +327,13 @@ std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) 
                 return !(static_cast<double>(x) < e);
             };
             bits.assign(static_cast<std::size_t>(bx * by * bz / 32 + 2), 0u);  // a word to spare for gathers
-            // Block rows (j, k) over threads; a word may span two rows: one
-            // atomic or per word.
-            parallel_items(by * bz, threads, [&](std::int64_t row_index) {
+            // Block rows (j, k) in one contiguous range per thread, with one
+            // column buffer each; a word may span two rows: one atomic or per word.
+            std::vector<std::vector<std::uint8_t>> cols(static_cast<std::size_t>(resolve_threads(threads)));
+            auto block_row = [&](std::int64_t row_index, std::vector<std::uint8_t>& col) {
                 const std::int64_t j = row_index % by, k = row_index / by;
                 // col[x]: some node of rows y = 2j … 2j + 2, z = 2k … 2k + 2 at x is not below e
-                std::vector<std::uint8_t> col(static_cast<std::size_t>(n[0]), 0);
+                col.assign(static_cast<std::size_t>(n[0]), 0);
                 for (std::int64_t z = 2 * k; z <= std::min(2 * k + 2, n[2] - 1); ++z)
                     for (std::int64_t y = 2 * j; y <= std::min(2 * j + 2, n[1] - 1); ++y) {
                         const T* row = data + n[0] * (y + n[1] * z);
@@ -358,7 +359,13 @@ std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) 
                     if ((c[0] | c[1] | (2 * i + 2 < n[0] ? c[2] : 0)) != 0) acc |= 1u << (b & 31);
                 }
                 flush();
-            });
+            };
+            parallel_blocks(static_cast<std::size_t>(by * bz), static_cast<int>(cols.size()),
+                            [&](std::size_t r0, std::size_t r1, int t) {
+                                for (std::size_t r = r0; r < r1; ++r)
+                                    block_row(static_cast<std::int64_t>(r),
+                                              cols[static_cast<std::size_t>(t)]);
+                            });
         }
     });
     return bits;
