@@ -135,6 +135,51 @@ TEST(EmptySpace, MacrocellsAreEmptyOnlyWhereTheMediumIsZero) {
     EXPECT_DOUBLE_EQ(EmptySpace::for_scalar(v, none, Model::absorption, 2, 1).empty_fraction(), 1.0);
 }
 
+// The classification against brute force, both ways: a macrocell is empty
+// exactly when all its nodes (shared faces included) are zero, for sample
+// types, component counts, cell sizes and sizes with n − 1 a multiple of the
+// cell size or not. Sparse non-zero nodes (one NaN among floats) make each
+// misplaced row, column or slice change the answer somewhere.
+TEST(EmptySpace, MacrocellRangesMatchBruteForce) {
+    std::mt19937 rng(7);
+    int checked = 0;
+    for (DType type : {DType::u8, DType::i16, DType::f32})
+        for (int comps : {1, 2})
+            for (int shift : {2, 3})
+                for (std::array<std::int64_t, 3> n :
+                     {std::array<std::int64_t, 3>{17, 9, 25}, std::array<std::int64_t, 3>{23, 30, 13}}) {
+                    Volume v(n, type, comps);
+                    std::uniform_int_distribution<std::int64_t> pick(0, n[0] * n[1] * n[2] - 1);
+                    for (int k = 0; k < 12; ++k) {
+                        const std::int64_t at = pick(rng);
+                        const double value = type == DType::f32 && k == 0 ? NAN : 3.0;
+                        v.set_value(at % n[0], at / n[0] % n[1], at / (n[0] * n[1]), value);
+                        v.set_value(pick(rng) % n[0], 0, 0, 5.0, comps - 1);  // other component
+                    }
+                    const EmptySpace es = EmptySpace::for_density(v, shift, 2);
+                    const std::int64_t c = std::int64_t{1} << shift;
+                    const std::array<std::int64_t, 3> md{(n[0] - 2) / c + 1, (n[1] - 2) / c + 1,
+                                                         (n[2] - 2) / c + 1};
+                    for (std::int64_t mz = 0; mz < md[2]; ++mz)
+                        for (std::int64_t my = 0; my < md[1]; ++my)
+                            for (std::int64_t mx = 0; mx < md[0]; ++mx) {
+                                bool zero = true;
+                                for (std::int64_t z = mz * c; z <= std::min(mz * c + c, n[2] - 1); ++z)
+                                    for (std::int64_t y = my * c; y <= std::min(my * c + c, n[1] - 1); ++y)
+                                        for (std::int64_t x = mx * c; x <= std::min(mx * c + c, n[0] - 1);
+                                             ++x)
+                                            zero = zero && v.value(x, y, z) == 0.0;
+                                const Vec3 p{static_cast<double>(mx * c), static_cast<double>(my * c),
+                                             static_cast<double>(mz * c)};
+                                ASSERT_EQ(es.empty(es.macrocell(p)), zero)
+                                    << static_cast<int>(type) << " comps " << comps << " shift " << shift
+                                    << " cell " << mx << " " << my << " " << mz;
+                                ++checked;
+                            }
+                }
+    EXPECT_GT(checked, 1000);
+}
+
 TEST(EmptySpace, NanNodesAreNeverSkipped) {
     Volume v = make_volume(10, 10, 10, [](double, double, double) { return 0.0; });
     v.set_value(3, 3, 3, NAN);

@@ -1,3 +1,6 @@
+#include <array>
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "fathom/error.h"
@@ -29,4 +32,25 @@ TEST(Volume, PlacementAndSmallestSpacing) {
     const Vec3 back = v.world_to_index(w);
     EXPECT_NEAR(back.z, 1.0, 1e-15);
     EXPECT_THROW(v.set_axes(Mat3::diagonal({1, 0, 1})), Error);
+}
+
+// The range over every sample of every component: extremes at the first and
+// last sample and in between, negatives, and floats' NaN and ±∞ left out.
+TEST(Volume, ValueRangeCoversEverySample) {
+    Volume s({5, 4, 3}, DType::i16, 2);
+    s.set_value(0, 0, 0, 7.0);
+    s.set_value(4, 3, 2, -300.0, 1);  // the very last sample
+    s.set_value(2, 1, 1, 12000.0);
+    EXPECT_EQ(s.value_range(), (std::array<double, 2>{-300.0, 12000.0}));
+    Volume u({3, 3, 3}, DType::u8);
+    u.set_value(0, 0, 0, 200.0);  // the very first
+    u.set_value(1, 2, 1, 5.0);
+    EXPECT_EQ(u.value_range(), (std::array<double, 2>{0.0, 200.0}));
+    Volume f({4, 2, 2}, DType::f32);
+    f.set_value(0, 0, 0, NAN);
+    f.set_value(1, 0, 0, INFINITY);
+    f.set_value(2, 0, 0, -INFINITY);
+    f.set_value(3, 1, 1, -2.5);
+    f.set_value(0, 1, 1, 4.0);
+    EXPECT_EQ(f.value_range(), (std::array<double, 2>{-2.5, 4.0}));
 }

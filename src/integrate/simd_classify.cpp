@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 
 #include "core/parallel.h"
@@ -320,11 +321,23 @@ std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) 
     visit_dtype(v.dtype(), [&]<class T>(T*) {
         if constexpr (kPairs<T>) {
             const T* data = v.data<T>();
-            // integers: !(v < e) ⇔ v ≥ ⌈e⌉ (e finite), clamped to what 32 bits hold
-            const auto at_least = static_cast<std::int32_t>(std::clamp(std::ceil(e), -0x1p31, 0x1p31 - 1.0));
-            auto reaches = [&](T x) {
-                if constexpr (std::is_integral_v<T>) return static_cast<std::int32_t>(x) >= at_least;
-                return !(static_cast<double>(x) < e);
+            // integers: !(v < e) ⇔ v ≥ ⌈e⌉ (e finite), compared in T: a
+            // threshold above T's range is never reached, one below always
+            const double at_least = std::ceil(e);
+            // or's reaches(row[x]) into col[x] for x < count (local pointers: no reloads)
+            auto mark = [&](const T* row, std::uint8_t* col, std::int64_t count) {
+                if constexpr (std::is_integral_v<T>) {
+                    if (!(at_least <= static_cast<double>(std::numeric_limits<T>::max())))
+                        return;  // NaN: never
+                    const T t = at_least <= static_cast<double>(std::numeric_limits<T>::lowest())
+                                    ? std::numeric_limits<T>::lowest()
+                                    : static_cast<T>(at_least);
+                    for (std::int64_t x = 0; x < count; ++x) col[x] |= static_cast<std::uint8_t>(row[x] >= t);
+                } else {
+                    const double ed = e;
+                    for (std::int64_t x = 0; x < count; ++x)
+                        col[x] |= static_cast<std::uint8_t>(!(static_cast<double>(row[x]) < ed));
+                }
             };
             bits.assign(static_cast<std::size_t>(bx * by * bz / 32 + 2), 0u);  // a word to spare for gathers
             // Block rows (j, k) in one contiguous range per thread, with one
@@ -336,9 +349,7 @@ std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) 
                 col.assign(static_cast<std::size_t>(n[0]), 0);
                 for (std::int64_t z = 2 * k; z <= std::min(2 * k + 2, n[2] - 1); ++z)
                     for (std::int64_t y = 2 * j; y <= std::min(2 * j + 2, n[1] - 1); ++y) {
-                        const T* row = data + n[0] * (y + n[1] * z);
-                        for (std::int64_t x = 0; x < n[0]; ++x)
-                            col[static_cast<std::size_t>(x)] |= static_cast<std::uint8_t>(reaches(row[x]));
+                        mark(data + n[0] * (y + n[1] * z), col.data(), n[0]);
                     }
                 const std::int64_t base = bx * row_index;  // block (0, j, k)
                 std::int64_t word = base >> 5;

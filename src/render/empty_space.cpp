@@ -5,22 +5,21 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <type_traits>
+#include <vector>
 
 #include "core/parallel.h"
 
 namespace fathom {
 namespace {
 
-struct Range {
-    double lo = std::numeric_limits<double>::infinity();
-    double hi = -std::numeric_limits<double>::infinity();
-    bool nan = false;
-};
-
 /// Classifies every macrocell of component 0 of `v` by its node range:
 /// 1 where empty(lo, hi) (never with a NaN node), 0 elsewhere; macrocell
 /// slabs (fixed z) spread over threads. One byte per macrocell: the ranges
-/// are not kept (on the bunny at 4³ cells they would be 36 MB).
+/// are not kept (on the bunny at 4³ cells they would be 36 MB). Each row of
+/// a slab is reduced once per macrocell it crosses, in the sample type
+/// (conversion to double keeps order, so the range is the same), and merged
+/// into the one or two macrocell rows that hold it.
 template <class Empty>
 std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
                                               int shift, int threads, const Empty& empty) {
@@ -29,27 +28,67 @@ std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<
     const std::int64_t comps = v.components();
     std::vector<std::uint8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
     visit_dtype(v.dtype(), [&]<class T>(T*) {
+        constexpr bool kFloat = std::is_floating_point_v<T>;
         const T* data = v.data<T>();
+        const auto plane = static_cast<std::size_t>(md[0] * md[1]);
+        const auto columns = static_cast<std::size_t>(md[0]);
         parallel_items(md[2], threads, [&](std::int64_t mz) {  // macrocell slabs (fixed z)
-            const std::int64_t z0 = mz * cells, z1 = std::min(z0 + cells, n[2] - 1);
-            for (std::int64_t my = 0; my < md[1]; ++my) {
-                const std::int64_t y0 = my * cells, y1 = std::min(y0 + cells, n[1] - 1);
-                for (std::int64_t mx = 0; mx < md[0]; ++mx) {
+            // per macrocell of the slab: its range so far, and whether a node is NaN
+            std::vector<T> lo(plane,
+                              kFloat ? std::numeric_limits<T>::infinity() : std::numeric_limits<T>::max());
+            std::vector<T> hi(
+                plane, kFloat ? -std::numeric_limits<T>::infinity() : std::numeric_limits<T>::lowest());
+            std::vector<std::uint8_t> nan(kFloat ? plane : 0);
+            std::vector<T> row_lo(columns), row_hi(columns);
+            std::vector<std::uint8_t> row_nan(kFloat ? columns : 0);
+            auto reduce_row = [&]<std::int64_t kStride>(const T* row, std::int64_t stride) {
+                const std::int64_t step = kStride > 0 ? kStride : stride;
+                for (std::int64_t mx = 0; mx < md[0]; ++mx) {  // nodes x0 … x1 of macrocell mx
                     const std::int64_t x0 = mx * cells, x1 = std::min(x0 + cells, n[0] - 1);
-                    Range r;
-                    for (std::int64_t z = z0; z <= z1; ++z)
-                        for (std::int64_t y = y0; y <= y1; ++y) {
-                            const T* row = data + (n[0] * (y + n[1] * z)) * comps;
-                            for (std::int64_t x = x0; x <= x1; ++x) {
-                                const double s = static_cast<double>(row[x * comps]);
-                                if (s != s) r.nan = true;
-                                r.lo = std::min(r.lo, s);
-                                r.hi = std::max(r.hi, s);
-                            }
-                        }
-                    const bool e = !r.nan && empty(r.lo, r.hi);  // NaN nodes: never empty
-                    out[static_cast<std::size_t>(mx + md[0] * (my + md[1] * mz))] = e ? 1 : 0;
+                    T a, b;
+                    if constexpr (kFloat) {  // NaN nodes are left out of the range and flagged
+                        a = std::numeric_limits<T>::infinity();
+                        b = -a;
+                    } else {
+                        a = b = row[x0 * step];
+                    }
+                    bool has_nan = false;
+                    for (std::int64_t x = x0; x <= x1; ++x) {
+                        const T s = row[x * step];
+                        if constexpr (kFloat) has_nan |= s != s;
+                        a = std::min(a, s);
+                        b = std::max(b, s);
+                    }
+                    const auto m = static_cast<std::size_t>(mx);
+                    row_lo[m] = a;
+                    row_hi[m] = b;
+                    if constexpr (kFloat) row_nan[m] = has_nan ? 1 : 0;
                 }
+            };
+            auto merge_row = [&](std::int64_t my) {  // into macrocell row my of the slab
+                const std::size_t o = static_cast<std::size_t>(my) * columns;
+                for (std::size_t m = 0; m < columns; ++m) {
+                    lo[o + m] = std::min(lo[o + m], row_lo[m]);
+                    hi[o + m] = std::max(hi[o + m], row_hi[m]);
+                    if constexpr (kFloat) nan[o + m] |= row_nan[m];
+                }
+            };
+            const std::int64_t z0 = mz * cells, z1 = std::min(z0 + cells, n[2] - 1);
+            for (std::int64_t z = z0; z <= z1; ++z)
+                for (std::int64_t y = 0; y < n[1]; ++y) {
+                    const T* row = data + (n[0] * (y + n[1] * z)) * comps;
+                    if (comps == 1)
+                        reduce_row.template operator()<1>(row, 1);
+                    else
+                        reduce_row.template operator()<0>(row, comps);
+                    // macrocell my holds node rows my·cells … min(my·cells + cells, n − 1)
+                    if (y % cells == 0 && y > 0) merge_row(y / cells - 1);
+                    if (y / cells < md[1]) merge_row(y / cells);
+                }
+            for (std::size_t m = 0; m < plane; ++m) {
+                const bool e = (!kFloat || nan[m] == 0) &&  // NaN nodes: never empty
+                               empty(static_cast<double>(lo[m]), static_cast<double>(hi[m]));
+                out[static_cast<std::size_t>(mz) * plane + m] = e ? 1 : 0;
             }
         });
     });

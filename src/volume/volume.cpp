@@ -121,10 +121,14 @@ std::array<double, 2> Volume::value_range() const {
                 hi = std::max(hi, v);
             }
         } else {
-            if (n > 0) {
-                auto [mn, mx] = std::minmax_element(p, p + n);
-                lo = *mn;
-                hi = *mx;
+            if (n > 0) {  // a reduction by value, which vectorizes (minmax_element does not)
+                T mn = p[0], mx = p[0];
+                for (std::size_t i = 1; i < n; ++i) {
+                    mn = std::min(mn, p[i]);
+                    mx = std::max(mx, p[i]);
+                }
+                lo = mn;
+                hi = mx;
             }
         }
         if (lo > hi) lo = hi = 0.0;
