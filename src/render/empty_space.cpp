@@ -175,27 +175,35 @@ void EmptySpace::build_ahead(int o, std::vector<std::uint8_t>& out) const {
     const auto& d = dims_;
     const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
     std::uint8_t* ahead = out.data();
+    const std::uint8_t* kind = empty_.data();
+    // index steps to the 7 neighbours ahead (bit 0: along x, 1: y, 2: z)
+    std::int64_t step[8] = {};
+    for (int e = 1; e < 8; ++e)
+        step[e] = ((e & 1) != 0 ? s[0] : 0) + ((e & 2) != 0 ? s[1] * d[0] : 0) +
+                  ((e & 4) != 0 ? s[2] * d[0] * d[1] : 0);
     for (std::int64_t zi = 0; zi < d[2]; ++zi)
-        for (std::int64_t yi = 0; yi < d[1]; ++yi)
+        for (std::int64_t yi = 0; yi < d[1]; ++yi) {
+            // neighbours inside the grid: those ahead along y and z exist
+            // unless the row lies on that face; along x, all but the first cell
+            unsigned row = 0xFEu;
+            for (int e = 1; e < 8; ++e)
+                if (((e & 2) != 0 && yi == 0) || ((e & 4) != 0 && zi == 0)) row &= ~(1u << e);
+            const std::int64_t my = s[1] > 0 ? d[1] - 1 - yi : yi, mz = s[2] > 0 ? d[2] - 1 - zi : zi;
+            const std::int64_t base = d[0] * (my + d[1] * mz);
             for (std::int64_t xi = 0; xi < d[0]; ++xi) {
                 // visit the cells ahead first: against the octant's direction
-                const std::array<std::int64_t, 3> m{s[0] > 0 ? d[0] - 1 - xi : xi,
-                                                    s[1] > 0 ? d[1] - 1 - yi : yi,
-                                                    s[2] > 0 ? d[2] - 1 - zi : zi};
-                const std::size_t i = index(m);
-                const bool empty = empty_[i] != 0;
+                const auto i = static_cast<std::size_t>(base + (s[0] > 0 ? d[0] - 1 - xi : xi));
+                const std::uint8_t empty = kind[i];
                 int best = kMaxDistance;
-                for (int e = 1; e < 8; ++e) {
-                    const std::array<std::int64_t, 3> q{m[0] + ((e & 1) != 0 ? s[0] : 0),
-                                                        m[1] + ((e & 2) != 0 ? s[1] : 0),
-                                                        m[2] + ((e & 4) != 0 ? s[2] : 0)};
-                    if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= d[0] || q[1] >= d[1] || q[2] >= d[2])
-                        continue;
-                    const std::size_t k = index(q);  // a neighbour of the other kind stops the box
-                    best = std::min(best, (empty_[k] != 0) == empty ? static_cast<int>(ahead[k]) : 0);
+                for (unsigned e = 1, valid = xi == 0 ? row & 0x55u : row; e < 8; ++e) {
+                    if (((valid >> e) & 1u) == 0) continue;
+                    const auto k = static_cast<std::size_t>(static_cast<std::int64_t>(i) + step[e]);
+                    // a neighbour of the other kind stops the box
+                    best = std::min(best, kind[k] == empty ? static_cast<int>(ahead[k]) : 0);
                 }
                 ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, kMaxDistance));
             }
+        }
 }
 
 namespace {
