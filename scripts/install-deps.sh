@@ -3,7 +3,7 @@
 set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
-  zlib1g-dev libpng-dev libopenexr-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
+  zlib1g-dev libisal-dev libpng-dev libopenexr-dev nlohmann-json3-dev libcli11-dev libpugixml-dev
   libnifti2-dev libniftiio-dev libgdcm-dev libopenvdb-dev libboost-dev
   libavformat-dev libavcodec-dev libswscale-dev
   libgtest-dev libbenchmark-dev libhwy-dev

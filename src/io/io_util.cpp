@@ -1,5 +1,7 @@
 #include "io/io_util.h"
 
+#include <isa-l/igzip_lib.h>
+
 #include <algorithm>
 #include <bit>
 #include <cctype>
@@ -8,10 +10,9 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <system_error>
 #include <type_traits>
-
-#include <zlib.h>
 
 #include "fathom/error.h"
 #include "fathom/log.h"
@@ -479,7 +480,10 @@ Piece plan_piece(const std::string& subject, const DataFile& f, const DataSpec& 
     return p;
 }
 
-/// Streaming inflate of one file's data (zlib or gzip, concatenated gzip members).
+/// Streaming inflate of one file's data (zlib or gzip, concatenated gzip
+/// members) with ISA-L's igzip, about 4× faster than zlib's inflate here
+/// (docs/dependencies.md). The wrapper is told by the first two bytes, as
+/// zlib's automatic detection does; the checksums are verified.
 class Inflater {
 public:
     Inflater(const std::string& subject, const Piece& p)
@@ -487,44 +491,49 @@ public:
           piece_(p),
           in_(subject, p.file->path),
           left_(p.in_bytes),
-          buf_(std::size_t{1} << 18) {
+          buf_(std::size_t{1} << 18),
+          st_(std::make_unique<inflate_state>()) {
         in_.seek(p.offset);
-        if (inflateInit2(&zs_, 15 + 32) != Z_OK) throw Error(subject, "cannot initialise zlib");
+        refill();
+        start_member();
     }
-    ~Inflater() { inflateEnd(&zs_); }
-    Inflater(const Inflater&) = delete;
-    Inflater& operator=(const Inflater&) = delete;
 
     /// Decompresses `skip` bytes to nowhere, then fills `out`.
     void run(std::uint64_t skip, std::span<std::byte> out) {
         const std::uint64_t total = skip + out.size();
         std::uint64_t done = 0;
-        std::vector<unsigned char> scratch(std::size_t{1} << 16);
+        std::vector<std::uint8_t> scratch(std::size_t{1} << 16);
         for (;;) {
-            if (zs_.avail_in == 0 && left_ > 0) refill();
-            unsigned char* dst = scratch.data();
+            if (st_->avail_in == 0 && left_ > 0) refill();
+            std::uint8_t* dst = scratch.data();
             std::size_t room = 1;  // once full: probe for extra data
             if (done < skip)
                 room = static_cast<std::size_t>(std::min<std::uint64_t>(scratch.size(), skip - done));
             else if (done < total) {
-                dst = reinterpret_cast<unsigned char*>(out.data()) + (done - skip);
+                dst = reinterpret_cast<std::uint8_t*>(out.data()) + (done - skip);
                 room =
                     static_cast<std::size_t>(std::min<std::uint64_t>(total - done, std::uint64_t{1} << 30));
             }
-            zs_.next_out = dst;
-            zs_.avail_out = static_cast<uInt>(room);
-            const int rc = inflate(&zs_, Z_NO_FLUSH);
-            const std::size_t produced = room - zs_.avail_out;
+            const std::uint32_t avail_in = st_->avail_in;
+            st_->next_out = dst;
+            st_->avail_out = static_cast<std::uint32_t>(room);
+            const int rc = isal_inflate(st_.get());
+            const std::size_t produced = room - st_->avail_out;
+            if (rc != ISAL_DECOMP_OK) corrupt(rc);
             if (done >= total && produced > 0) {
                 warn(subject_ + ": " + piece_.label + " expands to more than the " + std::to_string(total) +
                      " bytes expected; the rest is ignored");
                 return;
             }
             done += produced;
-            if (rc == Z_STREAM_END && next_member()) continue;
-            if (rc == Z_OK || (rc == Z_BUF_ERROR && zs_.avail_in == 0 && left_ > 0)) continue;
-            if (rc != Z_STREAM_END && rc != Z_BUF_ERROR) corrupt(rc);
-            break;
+            if (st_->block_state == ISAL_BLOCK_FINISH) {
+                if (next_member()) continue;
+                break;
+            }
+            if (produced == 0 && st_->avail_in == avail_in) {           // no progress: more input, if any
+                if (left_ == 0 || st_->avail_in == buf_.size()) break;  // the stream is cut short
+                refill();
+            }
         }
         if (done < total)
             throw Error(subject_, "compressed data in " + piece_.label + " ends early: it expands to " +
@@ -533,24 +542,62 @@ public:
 
 private:
     void refill() {
-        if (zs_.avail_in > 0 && zs_.next_in != buf_.data())
-            std::memmove(buf_.data(), zs_.next_in, zs_.avail_in);
+        if (st_->avail_in > 0 && st_->next_in != buf_.data())
+            std::memmove(buf_.data(), st_->next_in, st_->avail_in);
         const auto want =
-            static_cast<std::size_t>(std::min<std::uint64_t>(buf_.size() - zs_.avail_in, left_));
-        const std::size_t got = in_.read(buf_.data() + zs_.avail_in, want);
+            static_cast<std::size_t>(std::min<std::uint64_t>(buf_.size() - st_->avail_in, left_));
+        const std::size_t got = in_.read(buf_.data() + st_->avail_in, want);
         left_ = got < want ? 0 : left_ - got;
-        zs_.next_in = buf_.data();
-        zs_.avail_in += static_cast<uInt>(got);
+        st_->next_in = buf_.data();
+        st_->avail_in += static_cast<std::uint32_t>(got);
+    }
+    /// A new stream at next_in: gzip (1f 8b) or zlib.
+    void start_member() {
+        std::uint8_t* at = st_->next_in;
+        const std::uint32_t avail = st_->avail_in;
+        isal_inflate_init(st_.get());  // clears the input too
+        st_->next_in = at;
+        st_->avail_in = avail;
+        st_->crc_flag = gzip_next() ? ISAL_GZIP : ISAL_ZLIB;
+    }
+    [[nodiscard]] bool gzip_next() const {
+        return st_->avail_in >= 2 && st_->next_in[0] == 0x1f && st_->next_in[1] == 0x8b;
     }
     /// After the end of one stream: does another gzip member follow?
     bool next_member() {
-        if (zs_.avail_in < 2 && left_ > 0) refill();
-        if (zs_.avail_in < 2 || zs_.next_in[0] != 0x1f || zs_.next_in[1] != 0x8b) return false;
-        return inflateReset(&zs_) == Z_OK;
+        if (st_->avail_in < 2 && left_ > 0) refill();
+        if (!gzip_next()) return false;
+        start_member();
+        return true;
     }
     [[noreturn]] void corrupt(int rc) {
-        const std::string why =
-            zs_.msg ? zs_.msg : (rc == Z_NEED_DICT ? "needs a preset dictionary" : "zlib error");
+        std::string why;
+        switch (rc) {
+            case ISAL_INVALID_BLOCK:
+                why = "invalid deflate block";
+                break;
+            case ISAL_INVALID_SYMBOL:
+                why = "invalid code";
+                break;
+            case ISAL_INVALID_LOOKBACK:
+                why = "invalid distance too far back";
+                break;
+            case ISAL_INVALID_WRAPPER:
+                why = "incorrect header check";
+                break;
+            case ISAL_UNSUPPORTED_METHOD:
+                why = "unknown compression method";
+                break;
+            case ISAL_INCORRECT_CHECKSUM:
+                why = "incorrect data check";
+                break;
+            case ISAL_NEED_DICT:
+                why = "needs a preset dictionary";
+                break;
+            default:
+                why = "inflate error " + std::to_string(rc);
+                break;
+        }
         throw Error(subject_, "corrupt compressed (gzip/zlib) data in " + piece_.label + ": " + why);
     }
 
@@ -558,8 +605,8 @@ private:
     const Piece& piece_;
     InputFile in_;
     std::uint64_t left_;
-    std::vector<unsigned char> buf_;
-    z_stream zs_{};
+    std::vector<std::uint8_t> buf_;
+    std::unique_ptr<inflate_state> st_;  // about 100 KB, with its history window
 };
 
 template <class T>

@@ -242,6 +242,43 @@ TEST(NrrdReader, ConcatenatedGzipMembers) {
     EXPECT_EQ(std::string(reinterpret_cast<const char*>(v.bytes()), v.size_bytes()), bytes);
 }
 
+// A gzip header with every optional field (extra, name, comment, header
+// CRC), followed by a plain member, and a zlib stream under "encoding: gzip".
+TEST(NrrdReader, GzipOptionalHeaderFieldsAndZlibStreams) {
+    TempDir dir;
+    const std::string bytes = bytes_of(ramp<std::uint16_t>(48));
+    const std::string first = bytes.substr(0, 40);
+    z_stream zs{};
+    ASSERT_EQ(deflateInit2(&zs, 6, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
+    std::string extra("AB\x04\x00wxyz", 8), name = "slice.raw", comment = "fathom test";
+    gz_header h{};
+    h.extra = reinterpret_cast<Bytef*>(extra.data());
+    h.extra_len = static_cast<uInt>(extra.size());
+    h.name = reinterpret_cast<Bytef*>(name.data());
+    h.comment = reinterpret_cast<Bytef*>(comment.data());
+    h.hcrc = 1;
+    ASSERT_EQ(deflateSetHeader(&zs, &h), Z_OK);
+    std::string member(deflateBound(&zs, first.size()) + 128, '\0');
+    zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(first.data()));
+    zs.avail_in = static_cast<uInt>(first.size());
+    zs.next_out = reinterpret_cast<Bytef*>(member.data());
+    zs.avail_out = static_cast<uInt>(member.size());
+    ASSERT_EQ(deflate(&zs, Z_FINISH), Z_STREAM_END);
+    member.resize(zs.total_out);
+    deflateEnd(&zs);
+    ASSERT_EQ(static_cast<unsigned char>(member[3]), 0x1Eu);  // FHCRC | FEXTRA | FNAME | FCOMMENT
+    write_file(dir / "h.gz", member + gzip(bytes.substr(40)));
+    write_file(dir / "h.nhdr", kHeader443 + "encoding: gzip\ndata file: h.gz\n");
+    Volume v = read_nrrd(dir / "h.nhdr");
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(v.bytes()), v.size_bytes()), bytes);
+    write_file(dir / "z.nrrd", kHeader443 + "encoding: gzip\n\n" + zlib_compress(bytes));
+    v = read_nrrd(dir / "z.nrrd");
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(v.bytes()), v.size_bytes()), bytes);
+    member[10] = static_cast<char>(member[10] ^ 0x01);  // the extra field's length: the header CRC breaks
+    write_file(dir / "b.nrrd", kHeader443 + "encoding: gzip\n\n" + member + gzip(bytes.substr(40)));
+    expect_error([&] { read_nrrd(dir / "b.nrrd"); }, dir / "b.nrrd", {"corrupt"});
+}
+
 TEST(NrrdReader, AsciiEncoding) {
     TempDir dir;
     std::string text;
