@@ -35,6 +35,9 @@ for f in "$data"/mri_colin27_ch2better/*.nii.gz; do
     [ -f "$f" ] && { gzip -dc "$f" | head -c 1048576 >"$corpus/nifti/$(basename "$f" .gz)" || true; }
 done
 for r in metaimage raw; do mkdir -p "$corpus/$r"; done
+# attached gzip data (two members), so that the inflate path is fuzzed from the start
+{ printf 'NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: gzip\n\n'
+  seq 1 20 | head -c 32 | gzip -c; seq 21 40 | head -c 32 | gzip -c; } >"$corpus/nrrd/attached_gzip.nrrd"
 # A huge allocation must throw std::bad_alloc, as it does without ASan (the
 # readers turn it into an error), not abort the run.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-allocator_may_return_null=1}
