@@ -225,6 +225,10 @@ TEST(Cli, BenchReportsFrameTimesAsJson) {
     EXPECT_EQ(j["width"], 16);
     EXPECT_EQ(j["integrator"], "preintegrated");
     EXPECT_GT(j["segments_per_second"].get<double>(), 0.0);
+    EXPECT_EQ(j["first_seconds"], j["frame_seconds"][0]);
+    EXPECT_DOUBLE_EQ(j["first_image_seconds"].get<double>(), j["load_seconds"].get<double>() +
+                                                                 j["setup_seconds"].get<double>() +
+                                                                 j["first_seconds"].get<double>());
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 0", d).status, 2);
 }
 
