@@ -175,7 +175,7 @@ void EmptySpace::build_ahead(int o, std::vector<std::uint8_t>& out) const {
     const auto& d = dims_;
     const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
     std::uint8_t* ahead = out.data();
-    const std::uint8_t* kind = empty_.data();
+    const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
     // index steps to the 7 neighbours ahead (bit 0: along x, 1: y, 2: z)
     std::int64_t step[8] = {};
     for (int e = 1; e < 8; ++e)
