@@ -15,11 +15,11 @@ namespace {
 
 /// Classifies every macrocell of component 0 of `v` by its node range:
 /// 1 where empty(lo, hi) (never with a NaN node), 0 elsewhere; macrocell
-/// slabs (fixed z) spread over threads. One byte per macrocell: the ranges
-/// are not kept (on the bunny at 4³ cells they would be 36 MB). Each row of
-/// a slab is reduced once per macrocell it crosses, in the sample type
-/// (conversion to double keeps order, so the range is the same), and merged
-/// into the one or two macrocell rows that hold it.
+/// rows spread over threads. One byte per macrocell: the ranges are not
+/// kept (on the bunny at 4³ cells they would be 36 MB). For each macrocell
+/// row, the node rows it spans are reduced column by column, in the sample
+/// type (conversion to double keeps order, so the range is the same), and
+/// then each macrocell's window of columns.
 template <class Empty>
 std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
                                               int shift, int threads, const Empty& empty) {
@@ -29,66 +29,51 @@ std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<
     std::vector<std::uint8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
     visit_dtype(v.dtype(), [&]<class T>(T*) {
         constexpr bool kFloat = std::is_floating_point_v<T>;
+        constexpr T kLo = kFloat ? std::numeric_limits<T>::infinity() : std::numeric_limits<T>::max();
+        constexpr T kHi = kFloat ? -std::numeric_limits<T>::infinity() : std::numeric_limits<T>::lowest();
         const T* data = v.data<T>();
-        const auto plane = static_cast<std::size_t>(md[0] * md[1]);
-        const auto columns = static_cast<std::size_t>(md[0]);
-        parallel_items(md[2], threads, [&](std::int64_t mz) {  // macrocell slabs (fixed z)
-            // per macrocell of the slab: its range so far, and whether a node is NaN
-            std::vector<T> lo(plane,
-                              kFloat ? std::numeric_limits<T>::infinity() : std::numeric_limits<T>::max());
-            std::vector<T> hi(
-                plane, kFloat ? -std::numeric_limits<T>::infinity() : std::numeric_limits<T>::lowest());
-            std::vector<std::uint8_t> nan(kFloat ? plane : 0);
-            std::vector<T> row_lo(columns), row_hi(columns);
-            std::vector<std::uint8_t> row_nan(kFloat ? columns : 0);
-            auto reduce_row = [&]<std::int64_t kStride>(const T* row, std::int64_t stride) {
+        const auto columns = static_cast<std::size_t>(n[0]);
+        parallel_items(md[1] * md[2], threads, [&](std::int64_t r) {  // macrocell row (my, mz)
+            const std::int64_t my = r % md[1], mz = r / md[1];
+            // per node column: the range of the macrocell row's nodes there,
+            // and whether one is NaN (left out of the range)
+            std::vector<T> lo(columns, kLo), hi(columns, kHi);
+            std::vector<std::uint8_t> nan(kFloat ? columns : 0);
+            auto reduce = [&]<std::int64_t kStride>(const T* row, std::int64_t stride) {
                 const std::int64_t step = kStride > 0 ? kStride : stride;
-                for (std::int64_t mx = 0; mx < md[0]; ++mx) {  // nodes x0 … x1 of macrocell mx
-                    const std::int64_t x0 = mx * cells, x1 = std::min(x0 + cells, n[0] - 1);
-                    T a, b;
-                    if constexpr (kFloat) {  // NaN nodes are left out of the range and flagged
-                        a = std::numeric_limits<T>::infinity();
-                        b = -a;
-                    } else {
-                        a = b = row[x0 * step];
-                    }
-                    bool has_nan = false;
-                    for (std::int64_t x = x0; x <= x1; ++x) {
-                        const T s = row[x * step];
-                        if constexpr (kFloat) has_nan |= s != s;
-                        a = std::min(a, s);
-                        b = std::max(b, s);
-                    }
-                    const auto m = static_cast<std::size_t>(mx);
-                    row_lo[m] = a;
-                    row_hi[m] = b;
-                    if constexpr (kFloat) row_nan[m] = has_nan ? 1 : 0;
+                T* l = lo.data();  // local pointers: no reloads in the loop
+                T* h = hi.data();
+                std::uint8_t* q = nan.data();
+                for (std::size_t x = 0; x < columns; ++x) {
+                    const T s = row[static_cast<std::int64_t>(x) * step];
+                    if constexpr (kFloat) q[x] |= static_cast<std::uint8_t>(s != s);
+                    l[x] = std::min(l[x], s);  // a NaN s is never taken
+                    h[x] = std::max(h[x], s);
                 }
             };
-            auto merge_row = [&](std::int64_t my) {  // into macrocell row my of the slab
-                const std::size_t o = static_cast<std::size_t>(my) * columns;
-                for (std::size_t m = 0; m < columns; ++m) {
-                    lo[o + m] = std::min(lo[o + m], row_lo[m]);
-                    hi[o + m] = std::max(hi[o + m], row_hi[m]);
-                    if constexpr (kFloat) nan[o + m] |= row_nan[m];
-                }
-            };
+            // macrocell m holds nodes m·cells … min(m·cells + cells, n − 1)
+            const std::int64_t y0 = my * cells, y1 = std::min(y0 + cells, n[1] - 1);
             const std::int64_t z0 = mz * cells, z1 = std::min(z0 + cells, n[2] - 1);
             for (std::int64_t z = z0; z <= z1; ++z)
-                for (std::int64_t y = 0; y < n[1]; ++y) {
+                for (std::int64_t y = y0; y <= y1; ++y) {
                     const T* row = data + (n[0] * (y + n[1] * z)) * comps;
                     if (comps == 1)
-                        reduce_row.template operator()<1>(row, 1);
+                        reduce.template operator()<1>(row, 1);
                     else
-                        reduce_row.template operator()<0>(row, comps);
-                    // macrocell my holds node rows my·cells … min(my·cells + cells, n − 1)
-                    if (y % cells == 0 && y > 0) merge_row(y / cells - 1);
-                    if (y / cells < md[1]) merge_row(y / cells);
+                        reduce.template operator()<0>(row, comps);
                 }
-            for (std::size_t m = 0; m < plane; ++m) {
-                const bool e = (!kFloat || nan[m] == 0) &&  // NaN nodes: never empty
-                               empty(static_cast<double>(lo[m]), static_cast<double>(hi[m]));
-                out[static_cast<std::size_t>(mz) * plane + m] = e ? 1 : 0;
+            for (std::int64_t mx = 0; mx < md[0]; ++mx) {
+                const std::int64_t x0 = mx * cells, x1 = std::min(x0 + cells, n[0] - 1);
+                T a = kLo, b = kHi;
+                bool has_nan = false;
+                for (std::int64_t x = x0; x <= x1; ++x) {
+                    const auto c = static_cast<std::size_t>(x);
+                    a = std::min(a, lo[c]);
+                    b = std::max(b, hi[c]);
+                    if constexpr (kFloat) has_nan |= nan[c] != 0;
+                }
+                const bool e = !has_nan && empty(static_cast<double>(a), static_cast<double>(b));
+                out[static_cast<std::size_t>(mx + md[0] * r)] = e ? 1 : 0;
             }
         });
     });
