@@ -33,6 +33,29 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         for (int c = 0; c < nc; ++c) out[c] = hn::Set(d, f.y[c][0]);
         return;
     }
+    if (n <= FlatFunction::kTable && n <= hn::Lanes(d)) {
+        // i = the number of knots ≤ v; knots i − 1 and i (and their values)
+        // by lane permutation: the same operands as the loops below
+        const hn::RebindToSigned<D> di;
+        auto i = hn::Zero(di);
+        for (std::size_t k = 0; k < n; ++k)
+            i = hn::Sub(i, hn::VecFromMask(di, hn::RebindMask(di, hn::Le(hn::Set(d, kn[k]), v))));
+        const auto lo = hn::IndicesFromVec(d, hn::Max(hn::Sub(i, hn::Set(di, 1)), hn::Zero(di)));
+        const auto hi = hn::IndicesFromVec(d, hn::Min(i, hn::Set(di, static_cast<std::int64_t>(n - 1))));
+        const V knots = hn::LoadU(d, f.table[0]);
+        const V below = hn::TableLookupLanes(knots, lo), above = hn::TableLookupLanes(knots, hi);
+        const V w = hn::Div(hn::Sub(v, below), hn::Sub(above, below));
+        const auto any_below = hn::RebindMask(d, hn::Gt(i, hn::Zero(di)));
+        const auto any_above = hn::RebindMask(d, hn::Lt(i, hn::Set(di, static_cast<std::int64_t>(n))));
+        for (int c = 0; c < nc; ++c) {
+            const V y = hn::LoadU(d, f.table[1 + c]);
+            const V y0 = hn::TableLookupLanes(y, lo), y1 = hn::TableLookupLanes(y, hi);
+            const V r = hn::Add(y0, hn::Mul(w, hn::Sub(y1, y0)));
+            out[c] = hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, hn::Set(d, f.y[c][n - 1])),
+                                    hn::Set(d, f.y[c][0]));
+        }
+        return;
+    }
     V below = hn::Set(d, kn[0]), above = hn::Set(d, kn[n - 1]);
     V y0[3], y1[3];
     for (int c = 0; c < nc; ++c) {
@@ -300,6 +323,12 @@ FlatFunction flatten_any(const std::vector<double>& knots, int components, auto&
     f.components = components;
     for (int c = 0; c < components; ++c)
         for (std::size_t i = 0; i < knots.size(); ++i) f.y[c].push_back(value(i, c));
+    if (!knots.empty() && knots.size() <= FlatFunction::kTable)
+        for (std::size_t i = 0; i < FlatFunction::kTable; ++i) {
+            const std::size_t k = std::min(i, knots.size() - 1);
+            f.table[0][i] = knots[k];
+            for (int c = 0; c < components; ++c) f.table[1 + c][i] = f.y[c][k];
+        }
     return f;
 }
 }  // namespace

@@ -40,6 +40,10 @@ struct FlatFunction {
     std::vector<double> knots;
     std::vector<double> y[3];  // per component; only y[0] for σ
     int components = 1;
+    /// With at most kTable knots: the knots (row 0) and each component's
+    /// values (rows 1 …), padded with the last, for lane permutations.
+    static constexpr std::size_t kTable = 8;
+    alignas(64) double table[4][kTable] = {};
 };
 
 /// What the SIMD classifier needs: the volume, the ray's sample grid and
