@@ -37,6 +37,8 @@ class CMakeBuild(build_ext):
         target = pathlib.Path(self.get_ext_fullpath(ext.name))
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(built[-1], target)
+        # fathom's OpenVDB module, loaded from beside the extension for .vdb files
+        shutil.copy2(build / "python" / "fathom" / "fathom-vdb.so", target.parent / "fathom-vdb.so")
 
 
 setup(

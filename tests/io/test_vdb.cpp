@@ -4,12 +4,16 @@
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
+#include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -568,4 +572,30 @@ TEST(VdbReaderErrors, AbsurdBoundingBoxFailsWithoutAllocating) {
                      {"2097153x1048577x1048577", "limit"});
     }
     EXPECT_EQ(list_vdb_grids(dir / "huge.vdb")[0].active_voxels, 2u);
+}
+
+// OpenVDB runs in fathom's module (fathom-vdb.so), loaded on the first read:
+// one clear error, exit status 1, when it is missing or not a library.
+TEST(VdbReaderErrors, MissingOrBrokenModule) {
+    FATHOM_REQUIRE_SHARED(kCloud);
+    const TempDir d;
+    { std::ofstream(d / "fathom-vdb.so") << "not a shared library"; }
+    auto run = [&](const std::string& module, std::string& err) {
+        const std::string errfile = (d / "stderr.txt").string();
+        const std::string cmd = "FATHOM_VDB_MODULE='" + module + "' " + fathom::test::cli() + " info " +
+                                shared(kCloud).string() + " >/dev/null 2>" + errfile + " </dev/null";
+        const int rc = std::system(cmd.c_str());
+        std::ifstream in(errfile);
+        err.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+    };
+    std::string err;
+    EXPECT_EQ(run((d / "missing" / "fathom-vdb.so").string(), err), 1);
+    EXPECT_NE(err.find("OpenVDB module"), std::string::npos) << err;
+    EXPECT_NE(err.find("does not exist"), std::string::npos) << err;
+    EXPECT_NE(err.find(kCloud), std::string::npos) << err;  // names the file
+    EXPECT_EQ(run((d / "fathom-vdb.so").string(), err), 1);
+    EXPECT_NE(err.find("cannot load fathom's " + (d / "fathom-vdb.so").string()), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;  // one line
+    EXPECT_EQ(run("", err), 0) << err;                              // unset: found beside the executable
 }
