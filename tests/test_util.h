@@ -73,14 +73,16 @@ inline void write_file_bytes(const std::filesystem::path& p, const std::string& 
     std::ofstream(p, std::ios::binary) << bytes;
 }
 
-/// The CLI run with `args` (a shell command line), stdout and stderr kept in `d`.
+/// The CLI run with `args` (a shell command line), stdout and stderr kept in `d`;
+/// `env` ("NAME=VALUE ...") goes before the command when given.
 struct CliRun {
     int status;
     std::string out, err;
 };
-inline CliRun run_cli(const std::string& args, const TempDir& d) {
+inline CliRun run_cli(const std::string& args, const TempDir& d, const std::string& env = "") {
     const std::string outfile = (d / "stdout.txt").string(), errfile = (d / "stderr.txt").string();
-    const std::string cmd = cli() + " " + args + " >" + outfile + " 2>" + errfile + " </dev/null";
+    const std::string cmd = (env.empty() ? "" : env + " ") + cli() + " " + args + " >" + outfile + " 2>" +
+                            errfile + " </dev/null";
     const int rc = std::system(cmd.c_str());
     return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, read_file_bytes(outfile), read_file_bytes(errfile)};
 }

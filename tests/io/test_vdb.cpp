@@ -4,16 +4,13 @@
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
-#include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -581,13 +578,10 @@ TEST(VdbReaderErrors, MissingOrBrokenModule) {
     const TempDir d;
     { std::ofstream(d / "fathom-vdb.so") << "not a shared library"; }
     auto run = [&](const std::string& module, std::string& err) {
-        const std::string errfile = (d / "stderr.txt").string();
-        const std::string cmd = "FATHOM_VDB_MODULE='" + module + "' " + fathom::test::cli() + " info " +
-                                shared(kCloud).string() + " >/dev/null 2>" + errfile + " </dev/null";
-        const int rc = std::system(cmd.c_str());
-        std::ifstream in(errfile);
-        err.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-        return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+        const auto r =
+            fathom::test::run_cli("info " + shared(kCloud).string(), d, "FATHOM_VDB_MODULE='" + module + "'");
+        err = r.err;
+        return r.status;
     };
     std::string err;
     EXPECT_EQ(run((d / "missing" / "fathom-vdb.so").string(), err), 1);
