@@ -1,5 +1,7 @@
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -19,6 +21,25 @@ TEST(Volume, KeepsTypeAndIndexesXFastest) {
 TEST(Volume, RefusesAbsurdSizesBeforeAllocating) {
     EXPECT_THROW(Volume({1 << 20, 1 << 20, 1 << 10}, DType::u8), Error);
     EXPECT_THROW(Volume({0, 2, 2}, DType::u8), Error);
+}
+
+// Large grids start on a 2 MiB boundary (so whole huge pages can back
+// them), are zero-filled, and survive copies and moves; small ones too.
+TEST(Volume, LargeGridsAreAlignedToHugePagesAndZeroFilled) {
+    Volume big({256, 256, 40}, DType::u8);  // 2.5 MiB
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(big.bytes()) % (std::uintptr_t{2} << 20), 0u);
+    for (std::size_t i = 0; i < big.size_bytes(); i += 4093) EXPECT_EQ(big.data<std::uint8_t>()[i], 0) << i;
+    big.set_value(255, 255, 39, 7.0);
+    const Volume copy = big;
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(copy.bytes()) % (std::uintptr_t{2} << 20), 0u);
+    EXPECT_EQ(copy.value(255, 255, 39), 7.0);
+    Volume moved = std::move(big);
+    EXPECT_EQ(moved.value(255, 255, 39), 7.0);
+    Volume small({3, 3, 3}, DType::f64);
+    small.set_value(2, 2, 2, 1.5);
+    moved = small;
+    EXPECT_EQ(moved.size_bytes(), small.size_bytes());
+    EXPECT_EQ(moved.value(2, 2, 2), 1.5);
 }
 
 TEST(Volume, PlacementAndSmallestSpacing) {

@@ -34,6 +34,26 @@ DType parse_dtype(std::string_view name, const std::string& subject);
 /// data at most): a header claiming more is an error, not an allocation.
 inline constexpr std::uint64_t kMaxVolumeBytes = std::uint64_t{1} << 34;
 
+namespace detail {
+/// Storage for a volume's samples. Blocks of 2 MiB or more are aligned to
+/// 2 MiB and, where the system has them, marked for transparent huge pages:
+/// rays gather from all over the grid (a step along z moves nx·ny samples),
+/// and one TLB entry then covers 2 MiB instead of 4 KiB.
+void* allocate_samples(std::size_t bytes);
+void free_samples(void* p, std::size_t bytes) noexcept;
+
+template <class T>
+struct SampleAllocator {
+    using value_type = T;
+    SampleAllocator() = default;
+    template <class U>
+    SampleAllocator(const SampleAllocator<U>&) noexcept {}
+    T* allocate(std::size_t n) { return static_cast<T*>(allocate_samples(n * sizeof(T))); }
+    void deallocate(T* p, std::size_t n) noexcept { free_samples(p, n * sizeof(T)); }
+    friend bool operator==(const SampleAllocator&, const SampleAllocator&) { return true; }
+};
+}  // namespace detail
+
 class Volume {
 public:
     Volume() = default;
@@ -89,7 +109,7 @@ private:
     std::array<std::int64_t, 3> dims_{0, 0, 0};
     DType dtype_ = DType::u8;
     int components_ = 1;
-    std::vector<std::byte> bytes_;
+    std::vector<std::byte, detail::SampleAllocator<std::byte>> bytes_;
     Vec3 origin_{0, 0, 0};
     Mat3 axes_ = Mat3::identity();
 };

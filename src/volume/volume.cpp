@@ -3,10 +3,40 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <new>
+
+#ifdef __linux__
+#include <sys/mman.h>
+#endif
 
 #include "fathom/error.h"
 
 namespace fathom {
+
+namespace detail {
+
+namespace {
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+}
+
+void* allocate_samples(std::size_t bytes) {
+    if (bytes < kHugePage) return ::operator new(bytes);
+    void* p = ::operator new (bytes, std::align_val_t{kHugePage});
+#ifdef MADV_HUGEPAGE
+    // Advice only: where it is refused (no THP, "never"), the pages stay 4 KiB.
+    madvise(p, bytes / kHugePage * kHugePage, MADV_HUGEPAGE);
+#endif
+    return p;
+}
+
+void free_samples(void* p, std::size_t bytes) noexcept {
+    if (bytes < kHugePage)
+        ::operator delete(p);
+    else
+        ::operator delete (p, std::align_val_t{kHugePage});
+}
+
+}  // namespace detail
 
 std::size_t dtype_size(DType t) {
     return visit_dtype(t, []<class T>(T*) { return sizeof(T); });
