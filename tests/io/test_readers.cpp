@@ -386,6 +386,26 @@ TEST(NrrdReader, FourDimensionalRgb) {
     expect_error([&] { read_nrrd(dir / "t.nrrd"); }, dir / "t.nrrd", {"sizes", "size 1 or 3"});
 }
 
+// Big-endian samples come out whole and in order: from gzip members split
+// inside a sample, and from raw data of several MB.
+TEST(NrrdReader, BigEndianSwappedAcrossMembersAndChunks) {
+    TempDir dir;
+    const auto values = ramp<std::uint16_t>(48);
+    const std::string be = bytes_of(values, true);
+    write_file(dir / "m.gz", gzip(be.substr(0, 31)) + gzip(be.substr(31)));
+    write_file(dir / "m.nhdr",
+               "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 4 4 3\nendian: big\nencoding: gzip\n"
+               "data file: m.gz\n");
+    EXPECT_EQ(volume_u16(read_nrrd(dir / "m.nhdr")), values);
+
+    const auto big = ramp<std::uint16_t>(1100 * 1000 * 2);  // 4.4 MB
+    write_file(dir / "l.raw", bytes_of(big, true));
+    write_file(dir / "l.nhdr",
+               "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 1100 1000 2\nendian: big\nencoding: raw\n"
+               "data file: l.raw\n");
+    EXPECT_EQ(volume_u16(read_nrrd(dir / "l.nhdr")), big);
+}
+
 TEST(NrrdReader, ByteSkipMinusOneReadsTheEnd) {
     TempDir dir;
     const auto values = ramp<std::uint16_t>(48);
