@@ -510,15 +510,15 @@ int run(const Args& a) {
     };
     nlohmann::json jf = nlohmann::json::array();
     for (const auto& r : fathom_runs) {
-        const double m = median(r.seconds);
+        const double m = median(r.seconds), per_frame = paired(r);
         std::printf("  fathom %-22s median %.3f s  min %.3f s  (VTK / fathom = %.2f; frame by frame %.2f)\n",
                     r.integrator.c_str(), m, *std::min_element(r.seconds.begin(), r.seconds.end()),
-                    vtk_median / m, paired(r));
+                    vtk_median / m, per_frame);
         jf.push_back({{"integrator", r.integrator},
                       {"frame_seconds", r.seconds},
                       {"median_seconds", m},
                       {"ratio_vtk_over_fathom", vtk_median / m},
-                      {"ratio_vtk_over_fathom_per_frame_median", paired(r)}});
+                      {"ratio_vtk_over_fathom_per_frame_median", per_frame}});
     }
     std::printf("  VTK %-25s median %.3f s  min %.3f s  (mapper TimeToDraw: median %.3f s)\n",
                 "FixedPointRayCast", vtk_median, *std::min_element(vtk.seconds.begin(), vtk.seconds.end()),
