@@ -151,7 +151,9 @@ void roofline_ray(benchmark::State& state) {
     for (const auto& sp : spans) samples += fathom::segment_count(sp.length(), h);
     const fathom::Rgb bg{0, 0, 0};
     const auto fs = fathom::simd::flatten(c.sigma_function()), fc = fathom::simd::flatten(c.color_function());
-    const fathom::simd::BatchSource batch{v.bytes(), v.dtype(), 64, 64, 64, &fs, &fc};
+    fathom::simd::BatchSource batch{v.bytes(), v.dtype(), 64, 64, 64, &fs, &fc};
+    batch.zero_below = fathom::zero_below(c, fathom::Model::emission_absorption);
+    batch.breaks = &c.breakpoints();
     const fathom::Accel acc{nullptr, Simd ? &batch : nullptr};
     for (auto _ : state)
         for (const auto& sp : spans) {

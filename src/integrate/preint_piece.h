@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "diff/dual.h"
+#include "integrate/exp_neg.h"
 #include "integrate/preintegrated.h"
 
 namespace fathom::preint {
@@ -35,6 +36,17 @@ std::array<S, 3> eval(const QuadraticT<S>& g, const S& u) {
             g.a[2] + u * (g.b[2] + u * g.c[2])};
 }
 
+/// e^{−x}: exp_neg for double (the bits SIMD lanes reproduce), std::exp otherwise.
+template <class S>
+S exp_of_neg(const S& x) {
+    if constexpr (std::is_same_v<S, double>) {
+        return exp_neg(x);
+    } else {
+        using std::exp;
+        return exp(-x);
+    }
+}
+
 template <class S>
 S min_of(const S& a, const S& b) {  // as std::min: a unless b < a
     return b < a ? b : a;
@@ -50,7 +62,7 @@ S min_of(const S& a, const S& b) {  // as std::min: a unless b < a
 template <class S>
 PieceIntegralT<S> integrate_piece_t(const S& len, const S& s0, const S& s1, const QuadraticT<S>& g,
                                     bool self_attenuation) {
-    using std::exp, std::expm1, std::sqrt;
+    using std::sqrt;
     using namespace detail;
     PieceIntegralT<S> r;
     r.depth = len * 0.5 * (s0 + s1);  // eq. (15)
@@ -61,7 +73,7 @@ PieceIntegralT<S> integrate_piece_t(const S& len, const S& s0, const S& s1, cons
     if constexpr (std::is_same_v<S, double>) {
         const bool constant = s0 == s1 && g.b == Rgb{0, 0, 0} && g.c == Rgb{0, 0, 0};
         if (constant) {  // exact, as the alpha quadrature: g·(1 − e^{−σ len})/σ
-            const double w = s0 > 0.0 ? -std::expm1(-s0 * len) / s0 : len;
+            const double w = s0 > 0.0 ? one_minus_exp_neg(s0 * len) / s0 : len;
             for (int k = 0; k < 3; ++k) r.radiance[k] = g.a[k] * w;
             return r;
         }
@@ -79,7 +91,7 @@ PieceIntegralT<S> integrate_piece_t(const S& len, const S& s0, const S& s1, cons
     if (r.depth <= kThin) {
         for (int q = 0; q < 3; ++q) {
             const auto gu = eval<S>(g, kX3[q]);
-            const S w = len * kW3[q] * exp(-tau(kX3[q]));
+            const S w = len * kW3[q] * exp_of_neg<S>(tau(kX3[q]));
             for (int k = 0; k < 3; ++k) r.radiance[k] += w * gu[k];
         }
         return r;
@@ -93,7 +105,7 @@ PieceIntegralT<S> integrate_piece_t(const S& len, const S& s0, const S& s1, cons
         for (int q = 0; q < 6; ++q) {
             const S u = u0 + du * kX[q];
             const auto gu = eval(g, u);
-            const S w = len * du * kW[q] * exp(-tau(u));
+            const S w = len * du * kW[q] * exp_of_neg<S>(tau(u));
             for (int k = 0; k < 3; ++k) r.radiance[k] += w * gu[k];
         }
         u0 = u1;

@@ -23,8 +23,10 @@
 #include <optional>
 
 #include "integrate/accumulator.h"
+#include "integrate/exp_neg.h"
 #include "integrate/ray_span.h"
 #include "integrate/simd_classify.h"
+#include "integrate/simd_preint.h"
 #include "render/empty_space.h"
 #include "render/shading.h"
 
@@ -136,7 +138,7 @@ public:
                                                M == Model::absorption ? kNoSource : p.g, full_);
         for (int k = 0; k < 3; ++k) E_[k] += (full_ ? T_ : 1.0) * r.radiance[k];
         depth_ += r.depth;
-        T_ = std::exp(-depth_);
+        T_ = preint::exp_neg(depth_);
     }
     [[nodiscard]] Segment result() const { return {T_, E_}; }
 
@@ -167,7 +169,7 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
     if constexpr (M == Model::absorption) g = {};
     if constexpr (M == Model::emission) sf = sb = 0.0;
     const auto r = preint::integrate_piece(delta, sf, sb, g, full);
-    return {std::exp(-r.depth), r.radiance};
+    return {preint::exp_neg(r.depth), r.radiance};
 }
 
 /// The integrator: samples the n + 1 segment ends once each and composites
@@ -189,8 +191,11 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // SIMD: the ends `win` holds in `batch`; run_end is the last end the
     // evaluated run needs (set by the skipping walk).
     const simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, 0.0, 0};
-    alignas(64) double batch[simd::kBatch];
+    alignas(64) double batch[simd::kBatch + 1] = {};  // + 1: preintegrate_batch reads one past
     simd::Window win;
+    // The segments between the window's ends, computed on the first request.
+    simd::SegmentBatch segs;
+    bool segs_ready = false;
     std::int64_t run_end = s.order == Order::front_to_back ? n : 0;
     std::uint32_t below = 0;  // bit l: end win.b0 + l is below simd->zero_below
     // The batch of ends from j in the direction of travel; with `mask`, also
@@ -198,6 +203,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     auto load_window = [&](std::int64_t j, bool mask) {
         win.start_at(j, s.order == Order::front_to_back, run_end);
         simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
+        segs_ready = false;
         below = 0;
         if (mask)
             for (int l = 0; l < win.count(); ++l)
@@ -289,8 +295,20 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             // The evaluated run's last segment, and whether i lies in it.
             std::int64_t seg_end = s.order == Order::front_to_back ? n : 1;
             bool in_run = es == nullptr;
+            // The run splitter below has loaded a window holding both ends.
+            auto batch_segment = [&](std::int64_t i) -> Segment {
+                if (!segs_ready) {  // all but the segments with both ends below the zero range
+                    simd::preintegrate_batch(*simd, M, full, delta, batch, win.count(), below & (below >> 1),
+                                             segs);
+                    segs_ready = true;
+                }
+                const auto l = static_cast<std::size_t>(i - 1 - win.b0);
+                if (((segs.scalar >> l) & 1u) != 0) return segment(i);
+                return {segs.transmittance[l],
+                        {segs.radiance[0][l], segs.radiance[1][l], segs.radiance[2][l]}};
+            };
             return composite(
-                n, s.order, s.termination, bg, segment,
+                n, s.order, s.termination, bg, batch_segment,
                 [&](std::int64_t i, int dir) -> std::int64_t {
                     if (!in_run || dir * (seg_end - i) < 0) {
                         const std::int64_t k = next_run(i, dir);

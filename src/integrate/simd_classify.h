@@ -62,6 +62,10 @@ struct BatchSource {
     /// A vector of samples in blocks without a set bit is below it:
     /// classify_batch stores it as zero without interpolating.
     const std::uint32_t* active = nullptr;
+    /// For pre-integration (simd_preint.h): the transfer function's control
+    /// values (Classifier::breakpoints) and whether color is an emission q.
+    const std::vector<double>* breaks = nullptr;
+    bool associated = false;
 };
 
 /// Blocks of 2 × 2 × 2 cells (3³ nodes, clipped to the lattice), bx = nx/2

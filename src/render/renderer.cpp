@@ -70,6 +70,8 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
         impl_->batch = {
             volume.bytes(),   volume.dtype(),     volume.dims()[0],   volume.dims()[1],
             volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color, zero_below(impl_->tf, impl_->s.model)};
+        impl_->batch.breaks = &impl_->tf.breakpoints();
+        impl_->batch.associated = impl_->tf.associated();
         const bool point_sampled = impl_->s.integrator == IntegratorKind::alpha ||
                                    impl_->s.integrator == IntegratorKind::riemann;  // classify_batch's users
         if (impl_->s.skip_empty && point_sampled && std::isfinite(impl_->batch.zero_below)) {

@@ -1,0 +1,340 @@
+// Highway's foreach_target: this file is compiled once per x86 target and
+// preintegrate_batch dispatches at run time (src/integrate/simd_preint.h).
+// Every lane performs the scalar code's operations (preintegrated.h's
+// for_each_ramp_piece and RampIntegral, preint_piece.h's integrate_piece,
+// exp_neg.h) in the same order, without fused multiply–add.
+#include "integrate/simd_preint.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "integrate/exp_neg.h"
+#include "integrate/preint_piece.h"
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "integrate/simd_preint.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace fathom::simd {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+using D = hn::ScalableTag<double>;
+using V = hn::Vec<D>;
+using M = hn::Mask<D>;
+using DI = hn::RebindToSigned<D>;
+using VI = hn::Vec<DI>;
+
+/// taylor_estrin(r, from) per lane.
+HWY_INLINE V Taylor(D d, V r, std::size_t from) {
+    using preint::exp_detail::kTaylor;
+    auto pair = [&](std::size_t i) {
+        return hn::Add(hn::Set(d, kTaylor[from + i]), hn::Mul(hn::Set(d, kTaylor[from + i + 1]), r));
+    };
+    const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2), r8 = hn::Mul(r4, r4);
+    const V b0 = hn::Add(pair(0), hn::Mul(pair(2), r2)), b1 = hn::Add(pair(4), hn::Mul(pair(6), r2));
+    const V b2 = hn::Add(pair(8), hn::Mul(pair(10), r2)), b3 = pair(12);
+    return hn::Add(hn::Add(b0, hn::Mul(b1, r4)), hn::Mul(hn::Add(b2, hn::Mul(b3, r4)), r8));
+}
+
+/// exp_detail::reduce per lane (−x = k·ln 2 + r), and 2^k; valid where
+/// −x lies in the reduction's range (InRange).
+struct Reduced {
+    V k, r, scale;
+    Reduced(D d, V x) {
+        using namespace preint::exp_detail;
+        const DI di;
+        const V y = hn::Neg(x);
+        const V rounded = hn::Add(hn::Mul(y, hn::Set(d, kInvLn2)), hn::Set(d, kRound));
+        k = hn::Sub(rounded, hn::Set(d, kRound));
+        r = hn::Sub(hn::Sub(y, hn::Mul(k, hn::Set(d, kLn2Hi))), hn::Mul(k, hn::Set(d, kLn2Lo)));
+        // k from the rounded sum's low bits: 1.5·2^52 + k
+        const VI ki = hn::Sub(hn::BitCast(di, rounded), hn::BitCast(di, hn::Set(d, kRound)));
+        scale = hn::BitCast(d, hn::ShiftLeft<52>(hn::Add(ki, hn::Set(di, 1023))));
+    }
+};
+
+HWY_INLINE M InRange(D d, V x) {
+    using namespace preint::exp_detail;
+    const V y = hn::Neg(x);
+    return hn::And(hn::Le(hn::Set(d, kMinArg), y), hn::Le(y, hn::Set(d, kMaxArg)));
+}
+
+/// exp_neg(x) per lane, where InRange(x).
+HWY_INLINE V ExpNeg(D d, V x) {
+    const Reduced e(d, x);
+    return hn::Mul(Taylor(d, e.r, 0), e.scale);
+}
+
+/// exp_neg(x) per lane where |x| < ln 2 / 2, so that k = 0 and r = −x:
+/// the same bits without the reduction.
+HWY_INLINE V ExpNegSmall(D d, V x) {
+    return Taylor(d, hn::Neg(x), 0);
+}
+
+/// one_minus_exp_neg(x) per lane, where InRange(x).
+HWY_INLINE V OneMinusExpNeg(D d, V x) {
+    const Reduced e(d, x);
+    const V near = hn::Neg(hn::Mul(e.r, Taylor(d, e.r, 1)));
+    const V far = hn::Sub(hn::Set(d, 1.0), hn::Mul(Taylor(d, e.r, 0), e.scale));
+    return hn::IfThenElse(hn::Eq(e.k, hn::Zero(d)), near, far);
+}
+
+/// The number of keys below v (strict) or at most v, per lane (keys sorted).
+template <bool kStrict>
+HWY_INLINE VI Count(D d, const std::vector<double>& keys, V v) {
+    const DI di;
+    if (keys.size() <= 32) {
+        VI c = hn::Zero(di);
+        for (double k : keys) {
+            const M m = kStrict ? hn::Lt(hn::Set(d, k), v) : hn::Le(hn::Set(d, k), v);
+            c = hn::Sub(c, hn::VecFromMask(di, hn::RebindMask(di, m)));
+        }
+        return c;
+    }
+    HWY_ALIGN double lanes[hn::MaxLanes(d)];
+    HWY_ALIGN std::int64_t counts[hn::MaxLanes(d)];
+    hn::Store(v, d, lanes);
+    for (std::size_t l = 0; l < hn::Lanes(d); ++l) {
+        const auto it = kStrict ? std::lower_bound(keys.begin(), keys.end(), lanes[l])
+                                : std::upper_bound(keys.begin(), keys.end(), lanes[l]);
+        counts[l] = it - keys.begin();
+    }
+    return hn::Load(di, counts);
+}
+
+/// One piece of a piecewise-linear function per lane, chosen by a value:
+/// PiecewiseLinear::piece, then on_piece at any v.
+struct Piece {
+    V k0, k1, y0[3], y1[3], first[3], last[3];
+    M any_below, any_above;
+
+    Piece(D d, const FlatFunction& f, V v) {
+        const DI di;
+        const auto n = static_cast<std::int64_t>(f.knots.size());
+        const VI p = Count<false>(d, f.knots, v);
+        const VI lo = hn::Max(hn::Sub(p, hn::Set(di, 1)), hn::Zero(di)), hi = hn::Min(p, hn::Set(di, n - 1));
+        if (f.knots.size() <= FlatFunction::kTable && f.knots.size() <= hn::Lanes(d)) {
+            // by lane permutation of the padded table: the same values
+            const auto ilo = hn::IndicesFromVec(d, lo), ihi = hn::IndicesFromVec(d, hi);
+            const V knots = hn::LoadU(d, f.table[0]);
+            k0 = hn::TableLookupLanes(knots, ilo);
+            k1 = hn::TableLookupLanes(knots, ihi);
+            for (int c = 0; c < f.components; ++c) {
+                const V y = hn::LoadU(d, f.table[1 + c]);
+                y0[c] = hn::TableLookupLanes(y, ilo);
+                y1[c] = hn::TableLookupLanes(y, ihi);
+            }
+        } else {
+            k0 = hn::GatherIndex(d, f.knots.data(), lo);
+            k1 = hn::GatherIndex(d, f.knots.data(), hi);
+            for (int c = 0; c < f.components; ++c) {
+                y0[c] = hn::GatherIndex(d, f.y[c].data(), lo);
+                y1[c] = hn::GatherIndex(d, f.y[c].data(), hi);
+            }
+        }
+        for (int c = 0; c < f.components; ++c) {
+            first[c] = hn::Set(d, f.y[c].front());
+            last[c] = hn::Set(d, f.y[c].back());
+        }
+        any_below = hn::RebindMask(d, hn::Gt(p, hn::Zero(di)));
+        any_above = hn::RebindMask(d, hn::Lt(p, hn::Set(di, n)));
+    }
+    /// The position of v on the piece (on_piece's w, once for all components).
+    [[nodiscard]] V weight(V v) const { return hn::Div(hn::Sub(v, k0), hn::Sub(k1, k0)); }
+    /// Component c at the position w (on_piece: the ends' values before and after the knots).
+    [[nodiscard]] V at(int c, V w) const {
+        const V r = hn::Add(y0[c], hn::Mul(w, hn::Sub(y1[c], y0[c])));
+        return hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, last[c]), first[c]);
+    }
+};
+
+/// A piece's integrals per lane (integrate_piece), and lanes it leaves to
+/// the scalar code.
+struct PieceOut {
+    V depth, radiance[3];
+    M scalar;
+};
+
+/// integrate_piece(len, s0, s1, g = a + b·u + c·u², full) per lane.
+HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* b, const V* c, bool full) {
+    using namespace preint::detail;
+    PieceOut o;
+    o.depth = hn::Mul(hn::Mul(len, hn::Set(d, 0.5)), hn::Add(s0, s1));
+    o.scalar = hn::FirstN(d, 0);
+    if (!full) {  // eq. (17)
+        for (int k = 0; k < 3; ++k)
+            o.radiance[k] = hn::Mul(
+                len, hn::Add(hn::Add(a[k], hn::Div(b[k], hn::Set(d, 2.0))), hn::Div(c[k], hn::Set(d, 3.0))));
+        return o;
+    }
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
+    M constant = hn::Eq(s0, s1);
+    for (int k = 0; k < 3; ++k) constant = hn::And(constant, hn::And(hn::Eq(b[k], zero), hn::Eq(c[k], zero)));
+    // a constant piece: g·(1 − e^{−σ len})/σ, or g·len where σ = 0
+    const M absorbing = hn::And(constant, hn::Gt(s0, zero));
+    V weight = len;
+    if (!hn::AllFalse(d, absorbing)) {
+        const V x = hn::Mul(s0, len);
+        o.scalar = hn::AndNot(InRange(d, x), absorbing);
+        weight = hn::IfThenElse(absorbing, hn::Div(OneMinusExpNeg(d, x), s0), len);
+    }
+    const V A = hn::Mul(len, s0), B = hn::Mul(hn::Mul(len, hn::Set(d, 0.5)), hn::Sub(s1, s0));
+    auto tau = [&](V u) { return hn::Mul(u, hn::Add(A, hn::Mul(B, u))); };
+    auto source = [&](int k, V u) { return hn::Add(a[k], hn::Mul(u, hn::Add(b[k], hn::Mul(u, c[k])))); };
+    V thin[3] = {zero, zero, zero};
+    for (std::size_t q = 0; q < 3; ++q) {
+        const V u = hn::Set(d, kX3[q]);
+        const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), ExpNegSmall(d, tau(u)));  // τ ≤ kThin
+        for (int k = 0; k < 3; ++k) thin[k] = hn::Add(thin[k], hn::Mul(w, source(k, u)));
+    }
+    const M deep = hn::AndNot(constant, hn::Not(hn::Le(o.depth, hn::Set(d, kThin))));
+    o.scalar = hn::Or(o.scalar, hn::AndNot(constant, hn::Not(hn::Le(o.depth, hn::Set(d, kMaxDepth)))));
+    V thick[3] = {zero, zero, zero};
+    const M chunked = hn::AndNot(o.scalar, deep);
+    if (!hn::AllFalse(d, chunked)) {
+        // sub-intervals of optical depth ≤ 1: total = depth ≤ kMaxDepth, so
+        // the last ends at u = 1
+        const V total =
+            hn::IfThenElse(hn::Lt(hn::Set(d, kMaxDepth), o.depth), hn::Set(d, kMaxDepth), o.depth);
+        const V chunks = hn::IfThenElse(chunked, hn::Max(one, hn::Ceil(total)), zero);
+        HWY_ALIGN double count[hn::MaxLanes(d)];
+        hn::Store(chunks, d, count);
+        const double most = *std::max_element(count, count + hn::Lanes(d));
+        auto u_at = [&](V level) {  // τ(u) = level
+            const V linear = hn::Div(level, A);
+            V disc = hn::Add(hn::Mul(A, A), hn::Mul(hn::Mul(hn::Set(d, 4.0), B), level));
+            disc = hn::IfThenElse(hn::Lt(zero, disc), disc, zero);
+            const V root = hn::Div(hn::Mul(hn::Set(d, 2.0), level), hn::Add(A, hn::Sqrt(disc)));
+            const V u = hn::IfThenElse(hn::Eq(B, zero), linear, root);
+            return hn::IfThenElse(hn::Lt(u, one), u, one);  // min_of(1, u)
+        };
+        V u0 = zero;
+        for (double m = 1; m <= most; ++m) {
+            const V mv = hn::Set(d, m);
+            const M in = hn::Le(mv, chunks);
+            const V u1 = hn::IfThenElse(hn::Eq(mv, chunks), one, u_at(hn::Div(hn::Mul(total, mv), chunks)));
+            const V du = hn::Sub(u1, u0);
+            for (std::size_t q = 0; q < 6; ++q) {
+                const V u = hn::Add(u0, hn::Mul(du, hn::Set(d, kX[q])));
+                const V w = hn::Mul(hn::Mul(hn::Mul(len, du), hn::Set(d, kW[q])), ExpNeg(d, tau(u)));
+                for (int k = 0; k < 3; ++k)
+                    thick[k] = hn::IfThenElse(in, hn::Add(thick[k], hn::Mul(w, source(k, u))), thick[k]);
+            }
+            u0 = hn::IfThenElse(in, u1, u0);
+        }
+    }
+    for (int k = 0; k < 3; ++k)
+        o.radiance[k] =
+            hn::IfThenElse(constant, hn::Mul(a[k], weight), hn::IfThenElse(deep, thick[k], thin[k]));
+    return o;
+}
+
+void PreintegrateBatch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
+                       int count, std::uint32_t skip, SegmentBatch& out) {
+    const D d;
+    const DI di;
+    const std::size_t N = hn::Lanes(d);
+    const std::vector<double>& breaks = *src.breaks;
+    const auto nb = static_cast<std::int64_t>(breaks.size());
+    const bool absorb = model != Model::emission, source = model != Model::absorption;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0), vdelta = hn::Set(d, delta);
+    const auto segments = static_cast<std::size_t>(std::max(count - 1, 0));
+    out.scalar = ~std::uint32_t{0};
+    if (src.sigma->knots.empty() || src.color->knots.empty()) return;  // nothing to select from
+    for (std::size_t b = 0; b < segments; b += N) {
+        HWY_ALIGN double wanted[hn::MaxLanes(d)];
+        bool any = false;
+        for (std::size_t l = 0; l < N; ++l) {
+            const bool w = b + l < segments && ((skip >> (b + l)) & 1u) == 0;
+            wanted[l] = w ? 1.0 : 0.0;
+            any = any || w;
+        }
+        if (!any) continue;
+        const V vf = hn::LoadU(d, ends + b), vb = hn::LoadU(d, ends + b + 1);
+        const M ok = hn::And(hn::Eq(hn::Load(d, wanted), one), hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
+        // the control values strictly between the ends, in the order the ramp meets them
+        const M ascending = hn::Lt(vf, vb);
+        const V lo = hn::IfThenElse(ascending, vf, vb), hi = hn::IfThenElse(ascending, vb, vf);
+        const VI cuts = hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))),
+                                           hn::Sub(Count<true>(d, breaks, hi), Count<false>(d, breaks, lo)));
+        const VI up_from = Count<false>(d, breaks, vf);                            // first knot > vf
+        const VI down_from = hn::Sub(Count<true>(d, breaks, vf), hn::Set(di, 1));  // last knot < vf
+        HWY_ALIGN std::int64_t cut_count[hn::MaxLanes(d)];
+        hn::Store(cuts, di, cut_count);
+        const std::int64_t most = *std::max_element(cut_count, cut_count + N);
+        const V span = hn::Sub(vb, vf);
+        V E[3] = {zero, zero, zero};
+        V depth = zero, T = one, l0 = zero;
+        M scalar = hn::Not(ok);
+        for (std::int64_t m = 0; m <= most; ++m) {
+            const M active = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), cuts)));
+            const M cut = hn::RebindMask(d, hn::Lt(hn::Set(di, m), cuts));
+            V l1 = one;
+            if (m < most) {
+                const VI step = hn::Set(di, m);
+                VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(up_from, step),
+                                       hn::Sub(down_from, step));
+                at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
+                const V knot = hn::GatherIndex(d, breaks.data(), at);
+                l1 = hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
+            }
+            // for_each_ramp_piece's piece(l0, l1)
+            const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
+            const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
+            const Piece ps(d, *src.sigma, vm), pc(d, *src.color, vm);
+            V s0 = ps.at(0, ps.weight(v0)), s1 = ps.at(0, ps.weight(v1));
+            const V w0 = pc.weight(v0), w1 = pc.weight(v1);
+            V a[3], bq[3], cq[3];
+            for (int k = 0; k < 3; ++k) {
+                const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
+                if (!source) {
+                    a[k] = bq[k] = cq[k] = zero;
+                } else if (src.associated) {  // emission_source
+                    a[k] = c0;
+                    bq[k] = hn::Sub(c1, c0);
+                    cq[k] = zero;
+                } else {  // particle_source
+                    a[k] = hn::Mul(s0, c0);
+                    bq[k] = hn::Add(hn::Mul(s0, hn::Sub(c1, c0)), hn::Mul(c0, hn::Sub(s1, s0)));
+                    cq[k] = hn::Mul(hn::Sub(s1, s0), hn::Sub(c1, c0));
+                }
+            }
+            if (!absorb) s0 = s1 = zero;
+            // RampIntegral::add
+            const PieceOut r = IntegratePiece(d, hn::Mul(hn::Sub(l1, l0), vdelta), s0, s1, a, bq, cq, full);
+            for (int k = 0; k < 3; ++k)
+                E[k] = hn::IfThenElse(active, hn::Add(E[k], hn::Mul(full ? T : one, r.radiance[k])), E[k]);
+            depth = hn::IfThenElse(active, hn::Add(depth, r.depth), depth);
+            scalar = hn::Or(scalar, hn::And(active, hn::Or(r.scalar, hn::Not(InRange(d, depth)))));
+            T = hn::IfThenElse(active, ExpNeg(d, depth), T);
+            l0 = l1;
+        }
+        hn::Store(T, d, out.transmittance + b);
+        for (int k = 0; k < 3; ++k) hn::Store(E[k], d, out.radiance[k] + b);
+        std::uint8_t bits[8] = {};
+        hn::StoreMaskBits(d, hn::Not(scalar), bits);
+        out.scalar &= ~(static_cast<std::uint32_t>(bits[0]) << b);
+    }
+}
+
+// NOLINTNEXTLINE(google-readability-namespace-comments)
+}  // namespace HWY_NAMESPACE
+}  // namespace fathom::simd
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace fathom::simd {
+
+HWY_EXPORT(PreintegrateBatch);
+
+void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
+                        int count, std::uint32_t skip, SegmentBatch& out) {
+    HWY_DYNAMIC_DISPATCH(PreintegrateBatch)(src, model, full, delta, ends, count, skip, out);
+}
+
+}  // namespace fathom::simd
+#endif

@@ -1,0 +1,38 @@
+// SIMD pre-integration (docs/performance.md "SIMD"): the segments between
+// a batch of segment ends, several at once, each lane performing exactly
+// the operations of preintegrate_scalar (integrate/preintegrated.h) in the
+// same order: the ramp cut at the transfer function's control values, each
+// piece's closed forms and Gauss–Legendre sums with exp_neg, composed as
+// RampIntegral. So the results are the scalar code's bits; tests check every
+// target against it. Lanes the vector code does not take (a piece deeper
+// than 40 that is not constant, a scalar that is not finite, an exponent
+// beyond exp_neg's reduction) are flagged and left to the scalar code.
+#pragma once
+
+#include <cstdint>
+
+#include "fathom/render.h"
+
+#include "integrate/simd_classify.h"
+
+namespace fathom::simd {
+
+/// The segments between ends l and l + 1 of a batch, l = 0 … count − 2.
+struct SegmentBatch {
+    alignas(64) double transmittance[kBatch];
+    alignas(64) double radiance[3][kBatch];
+    /// Bit l set: segment l was not computed (the scalar code's).
+    std::uint32_t scalar = 0;
+};
+
+/// Pre-integrates the segments between consecutive `ends` (the scalar at
+/// segment ends j0 … j0 + count − 1, camera side first; `ends` holds kBatch
+/// + 1 values, the last read but not used) of length `delta` under `model`
+/// (emission–absorption, absorption or emission), with self-attenuation
+/// when `full`. src.sigma, src.color, src.breaks and src.associated describe
+/// the transfer function. Segments with their bit set in `skip` are not
+/// computed (flagged as scalar).
+void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
+                        int count, std::uint32_t skip, SegmentBatch& out);
+
+}  // namespace fathom::simd
