@@ -69,7 +69,10 @@ HWY_INLINE V ExpNeg(D d, V x) {
     return hn::Mul(Taylor(d, e.r, 0), e.scale);
 }
 
-/// exp_neg(x) per lane where |x| < ln 2 / 2, so that k = 0 and r = −x:
+/// Below ln 2 / 2 with a margin: x·(1/ln 2) rounds to k = 0.
+constexpr double kNoReduction = 0.34;
+
+/// exp_neg(x) per lane where |x| < kNoReduction, so that k = 0 and r = −x:
 /// the same bits without the reduction.
 HWY_INLINE V ExpNegSmall(D d, V x) {
     return Taylor(d, hn::Neg(x), 0);
@@ -259,10 +262,12 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
         // the control values strictly between the ends, in the order the ramp meets them
         const M ascending = hn::Lt(vf, vb);
         const V lo = hn::IfThenElse(ascending, vf, vb), hi = hn::IfThenElse(ascending, vb, vf);
-        const VI cuts = hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))),
-                                           hn::Sub(Count<true>(d, breaks, hi), Count<false>(d, breaks, lo)));
-        const VI up_from = Count<false>(d, breaks, vf);                            // first knot > vf
-        const VI down_from = hn::Sub(Count<true>(d, breaks, vf), hn::Set(di, 1));  // last knot < vf
+        const VI below_hi = Count<true>(d, breaks, hi), upto_lo = Count<false>(d, breaks, lo);
+        const VI cuts =
+            hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))), hn::Sub(below_hi, upto_lo));
+        // the first cut: the first knot > vf (ascending) or the last < vf
+        const VI first =
+            hn::IfThenElse(hn::RebindMask(di, ascending), upto_lo, hn::Sub(below_hi, hn::Set(di, 1)));
         HWY_ALIGN std::int64_t cut_count[hn::MaxLanes(d)];
         hn::Store(cuts, di, cut_count);
         const std::int64_t most = *std::max_element(cut_count, cut_count + N);
@@ -276,8 +281,8 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
             V l1 = one;
             if (m < most) {
                 const VI step = hn::Set(di, m);
-                VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(up_from, step),
-                                       hn::Sub(down_from, step));
+                VI at =
+                    hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, step), hn::Sub(first, step));
                 at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
                 const V knot = hn::GatherIndex(d, breaks.data(), at);
                 l1 = hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
@@ -310,7 +315,10 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
                 E[k] = hn::IfThenElse(active, hn::Add(E[k], hn::Mul(full ? T : one, r.radiance[k])), E[k]);
             depth = hn::IfThenElse(active, hn::Add(depth, r.depth), depth);
             scalar = hn::Or(scalar, hn::And(active, hn::Or(r.scalar, hn::Not(InRange(d, depth)))));
-            T = hn::IfThenElse(active, ExpNeg(d, depth), T);
+            // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
+            const V t = hn::AllTrue(d, hn::Lt(depth, hn::Set(d, kNoReduction))) ? ExpNegSmall(d, depth)
+                                                                                : ExpNeg(d, depth);
+            T = hn::IfThenElse(active, t, T);
             l0 = l1;
         }
         hn::Store(T, d, out.transmittance + b);
