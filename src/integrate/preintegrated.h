@@ -174,9 +174,11 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
 
 /// The integrator: samples the n + 1 segment ends once each and composites
 /// the segments. The scalar of a scalar medium is interpolated kBatch ends
-/// at a time with `simd` (the same bits); otherwise a two-slot cache serves
-/// both orders. With `es`, runs of segments whose two ends lie in one box of
-/// empty macrocells are skipped (exact).
+/// at a time with `simd`, and (unshaded) the segments between them are
+/// pre-integrated a vector at a time (simd_preint.h; the same bits);
+/// otherwise a two-slot cache serves both orders. With `es`, runs of
+/// segments whose two ends lie in one box of empty macrocells are skipped
+/// (exact).
 template <Model M, class Medium>
 RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
                                   double h, const Rgb& bg, bool full, const EmptySpace* es,
