@@ -188,13 +188,16 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
     const V A = hn::Mul(len, s0), B = hn::Mul(hn::Mul(len, hn::Set(d, 0.5)), hn::Sub(s1, s0));
     auto tau = [&](V u) { return hn::Mul(u, hn::Add(A, hn::Mul(B, u))); };
     auto source = [&](int k, V u) { return hn::Add(a[k], hn::Mul(u, hn::Add(b[k], hn::Mul(u, c[k])))); };
+    const M shallow = hn::Le(o.depth, hn::Set(d, kThin));
     V thin[3] = {zero, zero, zero};
-    for (std::size_t q = 0; q < 3; ++q) {
-        const V u = hn::Set(d, kX3[q]);
-        const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), ExpNegSmall(d, tau(u)));  // τ ≤ kThin
-        for (int k = 0; k < 3; ++k) thin[k] = hn::Add(thin[k], hn::Mul(w, source(k, u)));
+    if (!hn::AllFalse(d, hn::AndNot(constant, shallow))) {  // some lane takes the thin rule
+        for (std::size_t q = 0; q < 3; ++q) {
+            const V u = hn::Set(d, kX3[q]);
+            const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), ExpNegSmall(d, tau(u)));  // τ ≤ kThin
+            for (int k = 0; k < 3; ++k) thin[k] = hn::Add(thin[k], hn::Mul(w, source(k, u)));
+        }
     }
-    const M deep = hn::AndNot(constant, hn::Not(hn::Le(o.depth, hn::Set(d, kThin))));
+    const M deep = hn::AndNot(constant, hn::Not(shallow));
     o.scalar = hn::Or(o.scalar, hn::AndNot(constant, hn::Not(hn::Le(o.depth, hn::Set(d, kMaxDepth)))));
     V thick[3] = {zero, zero, zero};
     const M chunked = hn::AndNot(o.scalar, deep);
@@ -219,7 +222,11 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
         for (double m = 1; m <= most; ++m) {
             const V mv = hn::Set(d, m);
             const M in = hn::Le(mv, chunks);
-            const V u1 = hn::IfThenElse(hn::Eq(mv, chunks), one, u_at(hn::Div(hn::Mul(total, mv), chunks)));
+            // the last sub-interval of every lane in it ends at u = 1: no root to find
+            const M last = hn::Eq(mv, chunks);
+            const V u1 = hn::AllFalse(d, hn::AndNot(last, in))
+                             ? one
+                             : hn::IfThenElse(last, one, u_at(hn::Div(hn::Mul(total, mv), chunks)));
             const V du = hn::Sub(u1, u0);
             for (std::size_t q = 0; q < 6; ++q) {
                 const V u = hn::Add(u0, hn::Mul(du, hn::Set(d, kX[q])));
