@@ -3,6 +3,11 @@
 docs/performance.md: one row per run, then thread scaling (1 → 2 threads)
 and what empty-space skipping buys (off → on), for runs that match.
 
+Runs of the same configuration from several passes of the suite (e.g.
+`bench/suite.sh full out/a` and `out/b`) are merged: each row keeps the pass
+with the shortest median frame, so a burst of noise on a shared machine in
+one pass does not stand in the tables.
+
 usage: bench/suite_table.py RUN.json [RUN.json ...]
 """
 import json
@@ -25,10 +30,18 @@ def main(paths):
             runs.append(json.load(f))
     if not runs:
         sys.exit("suite_table: no runs")
-    runs.sort(key=lambda r: (r["scene"], r["width"], r["step"], r["integrator"], r.get("preset", ""),
-                             -r["threads"], not r.get("skip_empty", True)))
-    by_key = {key(r): r for r in runs}
-    print(f'Machine: {runs[0].get("cpu", "?")}, {runs[0].get("hardware_threads", "?")} hardware threads.\n')
+    passes = {}
+    for r in runs:
+        passes.setdefault(key(r), []).append(r)
+    by_key = {k: min(rs, key=lambda r: r["median_seconds"]) for k, rs in passes.items()}
+    runs = sorted(by_key.values(),
+                  key=lambda r: (r["scene"], r["width"], r["step"], r["integrator"], r.get("preset", ""),
+                                 -r["threads"], not r.get("skip_empty", True)))
+    print(f'Machine: {runs[0].get("cpu", "?")}, {runs[0].get("hardware_threads", "?")} hardware threads.')
+    most = max(len(rs) for rs in passes.values())
+    if most > 1:
+        print(f'Each row: the shortest median frame of up to {most} passes.')
+    print()
     print("| volume | image | step | integrator | preset | threads | skipping | median frame | "
           "samples/s | pixels/s | setup | peak RSS |")
     print("|---|---|---:|---|---|---:|---|---:|---:|---:|---:|---:|")
