@@ -1,6 +1,8 @@
 // SIMD classification of point samples, pre-integration's end samples and
 // segments (src/integrate/simd_classify.h, simd_preint.h):
 // every target this CPU runs gives images bit-identical to the scalar path.
+#include <array>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -14,6 +16,7 @@
 #include "fathom/render.h"
 
 #include "integrate/exp_neg.h"
+#include "integrate/point_rules.h"
 #include "integrate/preintegrated.h"
 #include "integrate/simd_classify.h"
 #include "integrate/simd_preint.h"
@@ -375,4 +378,73 @@ TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {
         const double y = i % 3 == 0 ? x * 1e-9 : x, m = -std::expm1(-y);
         ASSERT_LE(std::abs(preint::one_minus_exp_neg(y) - m), 4 * (std::nextafter(m, INFINITY) - m)) << y;
     }
+}
+
+// The segment rules classify_batch applies (BatchSource::rule): every lane,
+// every target, against point_rules.h on the scalar path's σ and g, bit for
+// bit; optical depths beyond exp_neg's reduction (σ up to 400, δ up to 50)
+// and NaN scalars included, and zero lanes (1, 0).
+TEST(Simd, SegmentRulesMatchTheScalarRules) {
+    std::mt19937 rng(13);
+    long compared = 0, deep = 0;
+    for (const auto& [name, c] : ramp_tfs()) {
+        const auto& knots = c.breakpoints();
+        const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
+                                 fc = simd::flatten(c.color_function());
+        std::uniform_real_distribution<double> value(knots.front() - 20, knots.back() + 20);
+        Volume v({6, 5, 4}, DType::f32);
+        for (std::int64_t k = 0; k < 4; ++k)
+            for (std::int64_t j = 0; j < 5; ++j)
+                for (std::int64_t i = 0; i < 6; ++i)
+                    v.set_value(i, j, k,
+                                (i + j + k) % 11 == 5 ? std::numeric_limits<double>::quiet_NaN()
+                                : (i + j) % 5 == 0    ? knots[static_cast<std::size_t>(i + k) % knots.size()]
+                                                      : value(rng));
+        const GridSampler<float> sampler(v);
+        for (auto model : {Model::emission_absorption, Model::absorption, Model::emission})
+            for (auto rule : {simd::PointRule::alpha, simd::PointRule::riemann}) {
+                simd::BatchSource src{v.bytes(), DType::f32, 6, 5, 4, &fs, &fc, zero_below(c, model)};
+                src.associated = c.associated();
+                src.rule = rule;
+                src.model = model;
+                std::uniform_real_distribution<double> pos(0.0, 1.0), dir(-1.0, 1.0);
+                for (int r = 0; r < 40; ++r) {
+                    simd::RayGrid g;
+                    g.delta = std::array{0.013, 0.4, 5.0, 50.0}[static_cast<std::size_t>(r % 4)];
+                    // inside the lattice, as the renderer's samples: 1.4 cells along the batch at most
+                    const double reach = 1.4 / (simd::kBatch * g.delta);
+                    g.p0 = {1.5 + pos(rng) * 2, 1.5 + pos(rng) * 1.5, 1.5 + pos(rng)};
+                    g.dp = {dir(rng) * reach, dir(rng) * reach, dir(rng) * reach};
+                    g.offset = 0.5;
+                    for (auto t : simd::available_targets()) {
+                        simd::force_target(t);
+                        simd::BatchOut out;
+                        simd::classify_batch(src, g, 1, simd::kBatch, out);
+                        for (int l = 0; l < simd::kBatch; ++l) {
+                            const double s = sampler(g.p0 + g.dp * (g.t_near + (l + g.offset) * g.delta));
+                            MediumSample m{c.sigma(s), c.color(s)};
+                            if (!c.associated())
+                                for (double& x : m.source) x *= m.sigma;
+                            if (model == Model::absorption) m.source = {0, 0, 0};
+                            if (model == Model::emission) m.sigma = 0.0;
+                            if (((out.zero >> l) & 1u) != 0) m = {};  // below zero_below: exactly zero
+                            const Segment want = rule == simd::PointRule::alpha ? alpha_segment(m, g.delta)
+                                                                                : riemann_segment(m, g.delta);
+                            const auto bits = [](double x) { return std::bit_cast<std::uint64_t>(x); };
+                            ASSERT_EQ(bits(out.t[l]), bits(want.transmittance))
+                                << simd::active_target() << " " << name << " " << to_string(model) << " lane "
+                                << l << " δ " << g.delta;
+                            for (int k = 0; k < 3; ++k)
+                                ASSERT_EQ(bits(out.radiance[k][l]), bits(want.radiance[k]))
+                                    << simd::active_target() << " " << name << " channel " << k;
+                            deep += !(m.sigma * g.delta <= 708.0) ? 1 : 0;
+                            ++compared;
+                        }
+                    }
+                    simd::force_target(0);
+                }
+            }
+    }
+    EXPECT_GE(compared, 4 * 3 * 2 * 40 * simd::kBatch);
+    EXPECT_GT(deep, 100);  // lanes the scalar rule takes over
 }

@@ -13,6 +13,7 @@
 
 #include "core/parallel.h"
 #include "diff/dual.h"
+#include "integrate/exp_neg.h"
 #include "integrate/preint_piece.h"
 #include "integrate/preintegrated.h"
 #include "render/renderer_impl.h"
@@ -294,12 +295,12 @@ struct PointSegments {
         l.sa = l.s.sigma;
         apply_model<M>(l.sa, l.src);
         if constexpr (kAlpha) {
-            const double alpha = -std::expm1(-l.sa * delta);
+            const double alpha = preint::one_minus_exp_neg(l.sa * delta);
             l.w = l.sa > 0.0 ? alpha / l.sa : delta;
             l.t = 1.0 - alpha;
         } else {
             l.w = delta;
-            l.t = std::exp(-l.sa * delta);
+            l.t = l.sa == 0.0 ? 1.0 : preint::exp_neg(l.sa * delta);
         }
         return l;
     }

@@ -21,9 +21,13 @@ struct Accel {
     const simd::BatchSource* simd = nullptr;
 };
 
+/// `rule` turns a sample (after the model) into its segment; `kind` names
+/// it, so that a SIMD classifier applying the same rule (BatchSource::rule)
+/// hands the segments over directly.
 template <Model M, class Medium, class Rule>
 RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, const RenderSettings& s,
-                                  double h, const Rgb& bg, const Accel& acc, Rule&& rule) {
+                                  double h, const Rgb& bg, const Accel& acc, simd::PointRule kind,
+                                  Rule&& rule) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
     const double offset =
@@ -54,7 +58,15 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
         }
         return medium.at(grid.at(i));  // shaded media shade here
     };
-    auto segment = [&](std::int64_t i) {
+    // Unshaded scalar media: the classifier applies the rule as well.
+    const bool batch_rule = Medium::kHasScalar && !Medium::kShaded && acc.simd != nullptr &&
+                            acc.simd->rule == kind && acc.simd->model == M;
+    auto segment = [&](std::int64_t i) -> Segment {
+        if (batch_rule) {
+            if (!win.holds(i)) load_window(i);
+            const auto l = static_cast<std::size_t>(i - win.b0);
+            return {batch.t[l], {batch.radiance[0][l], batch.radiance[1][l], batch.radiance[2][l]}};
+        }
         MediumSample m = sample(i);
         apply_model<M>(m.sigma, m.source);
         return rule(m, delta);

@@ -9,11 +9,14 @@
 #include <type_traits>
 
 #include "core/parallel.h"
+#include "integrate/point_rules.h"
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "integrate/simd_classify.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
+
+#include "integrate/exp_neg-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace fathom::simd {
@@ -73,6 +76,11 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         const auto m = hn::Lt(v, hn::Set(d, kn[i]));
         above = hn::IfThenElse(m, hn::Set(d, kn[i]), above);
         for (int c = 0; c < nc; ++c) y1[c] = hn::IfThenElse(m, hn::Set(d, f.y[c][i]), y1[c]);
+    }
+    if (n > 8) {  // PiecewiseLinear::piece bisects beyond 8 knots: NaN lands after the last
+        const auto nan = hn::IsNaN(v);
+        any_below = hn::Or(any_below, nan);
+        any_above = hn::AndNot(nan, any_above);
     }
     const V w = hn::Div(hn::Sub(v, below), hn::Sub(above, below));
     for (int c = 0; c < nc; ++c) {
@@ -260,6 +268,51 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
     return used;
 }
 
+/// The segments of lanes b … b + N − 1 (BatchSource::rule): as
+/// ScalarMedium::classify, apply_model and point_rules.h, lane by lane.
+/// Lanes whose optical depth lies outside exp_neg's reduction (or is NaN)
+/// take the scalar rule.
+HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t b, BatchOut& out) {
+    V sigma = hn::Load(d, out.sigma + b);
+    V g[3];
+    for (int k = 0; k < 3; ++k) {
+        g[k] = hn::Load(d, out.color[k] + b);
+        if (!src.associated) g[k] = hn::Mul(g[k], sigma);
+        if (src.model == Model::absorption) g[k] = hn::Zero(d);
+    }
+    if (src.model == Model::emission) sigma = hn::Zero(d);
+    const V dl = hn::Set(d, delta);
+    const V x = hn::Mul(sigma, dl);
+    V t, weight;
+    if (src.rule == PointRule::alpha) {
+        const V alpha = exp_v::OneMinusExpNeg(d, x);
+        weight = hn::IfThenElse(hn::Gt(sigma, hn::Zero(d)), hn::Div(alpha, sigma), dl);
+        t = hn::Sub(hn::Set(d, 1.0), alpha);
+    } else {
+        t = exp_v::ExpNeg(d, x);
+        weight = dl;
+    }
+    hn::Store(t, d, out.t + b);
+    for (int k = 0; k < 3; ++k) hn::Store(hn::Mul(g[k], weight), d, out.radiance[k] + b);
+    const auto outside = hn::Not(exp_v::InRange(d, x));
+    if (hn::AllFalse(d, outside)) return;
+    std::uint8_t bits[8] = {};
+    hn::StoreMaskBits(d, outside, bits);  // N ≤ 8 lanes of doubles
+    for (std::size_t l = 0; l < hn::Lanes(d); ++l) {
+        if (((bits[0] >> l) & 1u) == 0) continue;
+        const std::size_t i = b + l;
+        MediumSample m{out.sigma[i], {out.color[0][i], out.color[1][i], out.color[2][i]}};
+        if (!src.associated)
+            for (double& c : m.source) c *= m.sigma;
+        if (src.model == Model::absorption) m.source = {0, 0, 0};
+        if (src.model == Model::emission) m.sigma = 0.0;
+        const Segment seg =
+            src.rule == PointRule::alpha ? alpha_segment(m, delta) : riemann_segment(m, delta);
+        out.t[i] = seg.transmittance;
+        for (int k = 0; k < 3; ++k) out.radiance[k][i] = seg.radiance[k];
+    }
+}
+
 void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     const D d;
     HWY_ALIGN double values[kBatch];
@@ -278,6 +331,10 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
         if (hn::AllTrue(d, below)) {  // the medium is zero: σ = 0 and g = 0 downstream
             hn::Store(hn::Zero(d), d, out.sigma + b);
             for (int k = 0; k < 3; ++k) hn::Store(hn::Zero(d), d, out.color[k] + b);
+            if (src.rule != PointRule::none) {
+                hn::Store(hn::Set(d, 1.0), d, out.t + b);
+                for (int k = 0; k < 3; ++k) hn::Store(hn::Zero(d), d, out.radiance[k] + b);
+            }
             continue;
         }
         V r[3];
@@ -285,6 +342,7 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
         hn::Store(r[0], d, out.sigma + b);
         eval(d, *src.color, v, r);
         for (int k = 0; k < 3; ++k) hn::Store(r[k], d, out.color[k] + b);
+        if (src.rule != PointRule::none) ApplyRule(d, src, ray.delta, b, out);
     }
 }
 

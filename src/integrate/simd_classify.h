@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "fathom/math.h"
+#include "fathom/render.h"
 #include "fathom/transfer_function.h"
 #include "fathom/volume.h"
 
@@ -46,6 +47,10 @@ struct FlatFunction {
     alignas(64) double table[4][kTable] = {};
 };
 
+/// A point-sampled quadrature's segment rule (integrate/point_rules.h) that
+/// classify_batch also applies, lane by lane, after the model.
+enum class PointRule : std::uint8_t { none, riemann, alpha };
+
 /// What the SIMD classifier needs: the volume, the ray's sample grid and
 /// the transfer function.
 struct BatchSource {
@@ -66,6 +71,11 @@ struct BatchSource {
     /// values (Classifier::breakpoints) and whether color is an emission q.
     const std::vector<double>* breaks = nullptr;
     bool associated = false;
+    /// With a rule: classify_batch also turns each sample into its segment
+    /// (BatchOut::t, radiance) under `model` with δ = RayGrid::delta, as the
+    /// scalar rule does (the same bits). For unshaded scalar media only.
+    PointRule rule = PointRule::none;
+    Model model = Model::emission_absorption;
 };
 
 /// Blocks of 2 × 2 × 2 cells (3³ nodes, clipped to the lattice), bx = nx/2
@@ -108,6 +118,10 @@ struct BatchOut {
     /// Bit l set: sample j0 + l is below BatchSource::zero_below, so the
     /// medium is exactly zero there under the frame's model.
     std::uint32_t zero = 0;
+    /// With BatchSource::rule: each sample's segment, transmittance t_i and
+    /// radiance C_i (1 and 0 where `zero`).
+    alignas(64) double t[kBatch];
+    alignas(64) double radiance[3][kBatch];
 };
 
 /// The samples from lane l of a batch, in direction dir (±1), at most

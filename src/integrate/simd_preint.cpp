@@ -9,13 +9,14 @@
 #include <cstdint>
 #include <vector>
 
-#include "integrate/exp_neg.h"
 #include "integrate/preint_piece.h"
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "integrate/simd_preint.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
+
+#include "integrate/exp_neg-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace fathom::simd {
@@ -27,64 +28,11 @@ using V = hn::Vec<D>;
 using M = hn::Mask<D>;
 using DI = hn::RebindToSigned<D>;
 using VI = hn::Vec<DI>;
-
-/// taylor_estrin(r, from) per lane.
-HWY_INLINE V Taylor(D d, V r, std::size_t from) {
-    using preint::exp_detail::kTaylor;
-    auto pair = [&](std::size_t i) {
-        return hn::Add(hn::Set(d, kTaylor[from + i]), hn::Mul(hn::Set(d, kTaylor[from + i + 1]), r));
-    };
-    const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2), r8 = hn::Mul(r4, r4);
-    const V b0 = hn::Add(pair(0), hn::Mul(pair(2), r2)), b1 = hn::Add(pair(4), hn::Mul(pair(6), r2));
-    const V b2 = hn::Add(pair(8), hn::Mul(pair(10), r2)), b3 = pair(12);
-    return hn::Add(hn::Add(b0, hn::Mul(b1, r4)), hn::Mul(hn::Add(b2, hn::Mul(b3, r4)), r8));
-}
-
-/// exp_detail::reduce per lane (−x = k·ln 2 + r), and 2^k; valid where
-/// −x lies in the reduction's range (InRange).
-struct Reduced {
-    V k, r, scale;
-    Reduced(D d, V x) {
-        using namespace preint::exp_detail;
-        const DI di;
-        const V y = hn::Neg(x);
-        const V rounded = hn::Add(hn::Mul(y, hn::Set(d, kInvLn2)), hn::Set(d, kRound));
-        k = hn::Sub(rounded, hn::Set(d, kRound));
-        r = hn::Sub(hn::Sub(y, hn::Mul(k, hn::Set(d, kLn2Hi))), hn::Mul(k, hn::Set(d, kLn2Lo)));
-        // k from the rounded sum's low bits: 1.5·2^52 + k
-        const VI ki = hn::Sub(hn::BitCast(di, rounded), hn::BitCast(di, hn::Set(d, kRound)));
-        scale = hn::BitCast(d, hn::ShiftLeft<52>(hn::Add(ki, hn::Set(di, 1023))));
-    }
-};
-
-HWY_INLINE M InRange(D d, V x) {
-    using namespace preint::exp_detail;
-    const V y = hn::Neg(x);
-    return hn::And(hn::Le(hn::Set(d, kMinArg), y), hn::Le(y, hn::Set(d, kMaxArg)));
-}
-
-/// exp_neg(x) per lane, where InRange(x).
-HWY_INLINE V ExpNeg(D d, V x) {
-    const Reduced e(d, x);
-    return hn::Mul(Taylor(d, e.r, 0), e.scale);
-}
-
-/// Below ln 2 / 2 with a margin: x·(1/ln 2) rounds to k = 0.
-constexpr double kNoReduction = 0.34;
-
-/// exp_neg(x) per lane where |x| < kNoReduction, so that k = 0 and r = −x:
-/// the same bits without the reduction.
-HWY_INLINE V ExpNegSmall(D d, V x) {
-    return Taylor(d, hn::Neg(x), 0);
-}
-
-/// one_minus_exp_neg(x) per lane, where InRange(x).
-HWY_INLINE V OneMinusExpNeg(D d, V x) {
-    const Reduced e(d, x);
-    const V near = hn::Neg(hn::Mul(e.r, Taylor(d, e.r, 1)));
-    const V far = hn::Sub(hn::Set(d, 1.0), hn::Mul(Taylor(d, e.r, 0), e.scale));
-    return hn::IfThenElse(hn::Eq(e.k, hn::Zero(d)), near, far);
-}
+using exp_v::ExpNeg;
+using exp_v::ExpNegSmall;
+using exp_v::InRange;
+using exp_v::kNoReduction;
+using exp_v::OneMinusExpNeg;
 
 /// The number of keys below v (strict) or at most v, per lane (keys sorted).
 template <bool kStrict>

@@ -107,6 +107,12 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
             }
         }
     }
+    // Unshaded point sampling: the classifier applies the segment rule too.
+    if (impl_->batch.data != nullptr && optical && !gradient_work) {
+        impl_->batch.model = model;
+        if (impl_->s.integrator == IntegratorKind::alpha) impl_->batch.rule = simd::PointRule::alpha;
+        if (impl_->s.integrator == IntegratorKind::riemann) impl_->batch.rule = simd::PointRule::riemann;
+    }
     impl_->tracer = visit_dtype(volume.dtype(),
                                 [&]<class T>(T*) { return scalar_tracer<T>(volume, *impl_, gradient_work); });
 }
