@@ -83,9 +83,8 @@ HWY_INLINE V ExpNegSmall(D d, V x) {
 /// one_minus_exp_neg(x) per lane, where InRange(x).
 HWY_INLINE V OneMinusExpNeg(D d, V x) {
     const Reduced e(d, x);
-    const V near = hn::Neg(hn::Mul(e.r, Taylor(d, e.r, 1)));
-    const V far = hn::Sub(hn::Set(d, 1.0), hn::Mul(Taylor(d, e.r, 0), e.scale));
-    return hn::IfThenElse(hn::Eq(e.k, hn::Zero(d)), near, far);
+    const V m = hn::Mul(e.r, Taylor(d, e.r, 1));  // e^r − 1
+    return hn::Sub(hn::Sub(hn::Set(d, 1.0), e.scale), hn::Mul(e.scale, m));
 }
 
 }  // namespace exp_v

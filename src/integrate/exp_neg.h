@@ -71,14 +71,17 @@ inline double exp_neg(double x) {
     return taylor_estrin(r, 0) * two_to(k);
 }
 
-/// 1 − e^{−x} (−expm1(−x)), to a few ulp also for tiny x: where k = 0,
-/// −r·(e^r − 1)/r from its own series; std::expm1 beyond the reduction.
+/// 1 − e^{−x} (−expm1(−x)), to a few ulp also for tiny x: with
+/// m = e^r − 1 = r·(e^r − 1)/r from its own series, 1 − 2^k·(1 + m) =
+/// (1 − 2^k) − 2^k·m, where 1 − 2^k and the scaling are exact (k ≤ 0 for
+/// x ≥ 0; −m where k = 0): one polynomial and no branch on k.
+/// std::expm1 beyond the reduction.
 inline double one_minus_exp_neg(double x) {
     using namespace exp_detail;
     double k, r;
     if (!reduce(x, k, r)) return -std::expm1(-x);
-    if (k == 0.0) return -(r * taylor_estrin(r, 1));
-    return 1.0 - taylor_estrin(r, 0) * two_to(k);
+    const double scale = two_to(k);
+    return (1.0 - scale) - scale * (r * taylor_estrin(r, 1));
 }
 
 }  // namespace fathom::preint

@@ -20,7 +20,7 @@ inline Segment riemann_segment(const MediumSample& m, double delta) {
 /// `alpha` (the NeRF quadrature, eq. (12)): the exact integral of the
 /// segment's constant medium, g·(1 − e^{−σδ})/σ (g·δ where σ = 0).
 inline Segment alpha_segment(const MediumSample& m, double delta) {
-    if (m.sigma == 0.0) {  // the same bits as below (1 − e^{−0} = −0, weight δ) without the polynomial
+    if (m.sigma == 0.0) {  // the same bits as below (1 − e^{−0} = 0, weight δ) without the polynomial
         Segment seg{1.0, {}};
         for (int c = 0; c < 3; ++c) seg.radiance[c] = m.source[c] * delta;
         return seg;
