@@ -10,8 +10,10 @@
 # FATHOM: the fathom binary (default build/fathom); DATA: the shared data
 # folder (default ../shared/data; missing volumes are skipped).
 # quick: 512², step 0.5, alpha and preintegrated, 2 threads, plus 1-thread
-# and skipping-off rows on the chest CT (about 5 minutes on 2 cores).
-# full: the whole matrix (about an hour on 2 cores).
+# and skipping-off rows on the chest CT (under a minute on 2 cores; 22 s on
+# the machine of docs/performance.md).
+# full: the whole matrix (14 minutes on that machine, up to an hour on slower
+# ones).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode=${1:-quick}
