@@ -377,7 +377,12 @@ TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {
         // 1 − e^{−x}, also for tiny x
         const double y = i % 3 == 0 ? x * 1e-9 : x, m = -std::expm1(-y);
         ASSERT_LE(std::abs(preint::one_minus_exp_neg(y) - m), 4 * (std::nextafter(m, INFINITY) - m)) << y;
+        // the thin pieces' degree-7 series on [0, 1/4]: truncation < 4e−10
+        const double t = 0.25 * small(rng);
+        ASSERT_LE(std::abs(preint::exp_neg_thin(t) - std::exp(-t)), 4e-10) << t;
     }
+    EXPECT_EQ(preint::exp_neg_thin(0.0), 1.0);
+    EXPECT_GT(std::abs(preint::exp_neg_thin(0.25) - std::exp(-0.25)), 1e-12);  // a truncated series, not libm
 }
 
 // The segment rules classify_batch applies (BatchSource::rule): every lane,

@@ -80,6 +80,18 @@ HWY_INLINE V ExpNegSmall(D d, V x) {
     return Taylor(d, hn::Neg(x), 0);
 }
 
+/// exp_neg_thin(x) per lane (0 ≤ x ≤ 1/4).
+HWY_INLINE V ExpNegThin(D d, V x) {
+    using preint::exp_detail::kTaylor;
+    const V r = hn::Neg(x);
+    auto pair = [&](std::size_t i) {
+        return hn::Add(hn::Set(d, kTaylor[i]), hn::Mul(hn::Set(d, kTaylor[i + 1]), r));
+    };
+    const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2);
+    return hn::Add(hn::Add(pair(0), hn::Mul(pair(2), r2)),
+                   hn::Mul(hn::Add(pair(4), hn::Mul(pair(6), r2)), r4));
+}
+
 /// one_minus_exp_neg(x) per lane, where InRange(x).
 HWY_INLINE V OneMinusExpNeg(D d, V x) {
     const Reduced e(d, x);

@@ -46,6 +46,16 @@ S exp_of_neg(const S& x) {
         return exp(-x);
     }
 }
+/// The same for 0 ≤ x ≤ kThin: exp_neg_thin for double.
+template <class S>
+S exp_of_neg_thin(const S& x) {
+    if constexpr (std::is_same_v<S, double>) {
+        return exp_neg_thin(x);
+    } else {
+        using std::exp;
+        return exp(-x);
+    }
+}
 
 template <class S>
 S min_of(const S& a, const S& b) {  // as std::min: a unless b < a
@@ -91,7 +101,7 @@ PieceIntegralT<S> integrate_piece_t(const S& len, const S& s0, const S& s1, cons
     if (r.depth <= kThin) {
         for (int q = 0; q < 3; ++q) {
             const auto gu = eval<S>(g, kX3[q]);
-            const S w = len * kW3[q] * exp_of_neg<S>(tau(kX3[q]));
+            const S w = len * kW3[q] * exp_of_neg_thin<S>(tau(kX3[q]));  // τ ≤ kThin
             for (int k = 0; k < 3; ++k) r.radiance[k] += w * gu[k];
         }
         return r;

@@ -141,7 +141,7 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
     if (!hn::AllFalse(d, hn::AndNot(constant, shallow))) {  // some lane takes the thin rule
         for (std::size_t q = 0; q < 3; ++q) {
             const V u = hn::Set(d, kX3[q]);
-            const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), ExpNegSmall(d, tau(u)));  // τ ≤ kThin
+            const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), exp_v::ExpNegThin(d, tau(u)));  // τ ≤ kThin
             for (int k = 0; k < 3; ++k) thin[k] = hn::Add(thin[k], hn::Mul(w, source(k, u)));
         }
     }
