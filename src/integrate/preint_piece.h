@@ -36,21 +36,12 @@ std::array<S, 3> eval(const QuadraticT<S>& g, const S& u) {
             g.a[2] + u * (g.b[2] + u * g.c[2])};
 }
 
-/// e^{−x}: exp_neg for double (the bits SIMD lanes reproduce), std::exp otherwise.
-template <class S>
+/// e^{−x}: F for double (exp_neg, or exp_neg_thin where x ≤ kThin: the bits
+/// SIMD lanes reproduce), std::exp otherwise.
+template <class S, double (*F)(double) = exp_neg>
 S exp_of_neg(const S& x) {
     if constexpr (std::is_same_v<S, double>) {
-        return exp_neg(x);
-    } else {
-        using std::exp;
-        return exp(-x);
-    }
-}
-/// The same for 0 ≤ x ≤ kThin: exp_neg_thin for double.
-template <class S>
-S exp_of_neg_thin(const S& x) {
-    if constexpr (std::is_same_v<S, double>) {
-        return exp_neg_thin(x);
+        return F(x);
     } else {
         using std::exp;
         return exp(-x);
@@ -101,7 +92,7 @@ PieceIntegralT<S> integrate_piece_t(const S& len, const S& s0, const S& s1, cons
     if (r.depth <= kThin) {
         for (int q = 0; q < 3; ++q) {
             const auto gu = eval<S>(g, kX3[q]);
-            const S w = len * kW3[q] * exp_of_neg_thin<S>(tau(kX3[q]));  // τ ≤ kThin
+            const S w = len * kW3[q] * exp_of_neg<S, exp_neg_thin>(tau(kX3[q]));  // τ ≤ kThin
             for (int k = 0; k < 3; ++k) r.radiance[k] += w * gu[k];
         }
         return r;

@@ -268,15 +268,16 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
     return used;
 }
 
-/// The segments of lanes b … b + N − 1 (BatchSource::rule): as
+/// The segments of lanes b … b + N − 1 (BatchSource::rule) from their σ and
+/// c (also stored in `out`, where the scalar fallback reads them): as
 /// ScalarMedium::classify, apply_model and point_rules.h, lane by lane.
 /// Lanes whose optical depth lies outside exp_neg's reduction (or is NaN)
 /// take the scalar rule.
-HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t b, BatchOut& out) {
-    V sigma = hn::Load(d, out.sigma + b);
+HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t b, V sigma, const V* color,
+                          BatchOut& out) {
     V g[3];
     for (int k = 0; k < 3; ++k) {
-        g[k] = hn::Load(d, out.color[k] + b);
+        g[k] = color[k];
         if (!src.associated) g[k] = hn::Mul(g[k], sigma);
         if (src.model == Model::absorption) g[k] = hn::Zero(d);
     }
@@ -339,10 +340,11 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
         }
         V r[3];
         eval(d, *src.sigma, v, r);
-        hn::Store(r[0], d, out.sigma + b);
+        const V sigma = r[0];
+        hn::Store(sigma, d, out.sigma + b);
         eval(d, *src.color, v, r);
         for (int k = 0; k < 3; ++k) hn::Store(r[k], d, out.color[k] + b);
-        if (src.rule != PointRule::none) ApplyRule(d, src, ray.delta, b, out);
+        if (src.rule != PointRule::none) ApplyRule(d, src, ray.delta, b, sigma, r, out);
     }
 }
 

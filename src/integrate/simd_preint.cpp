@@ -21,18 +21,7 @@
 HWY_BEFORE_NAMESPACE();
 namespace fathom::simd {
 namespace HWY_NAMESPACE {
-namespace hn = hwy::HWY_NAMESPACE;
-
-using D = hn::ScalableTag<double>;
-using V = hn::Vec<D>;
-using M = hn::Mask<D>;
-using DI = hn::RebindToSigned<D>;
-using VI = hn::Vec<DI>;
-using exp_v::ExpNeg;
-using exp_v::ExpNegSmall;
-using exp_v::InRange;
-using exp_v::kNoReduction;
-using exp_v::OneMinusExpNeg;
+using namespace exp_v;  // hn, the vector types D, V, M, DI, VI and the exponentials
 
 /// The number of keys below v (strict) or at most v, per lane (keys sorted).
 template <bool kStrict>
@@ -141,7 +130,7 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
     if (!hn::AllFalse(d, hn::AndNot(constant, shallow))) {  // some lane takes the thin rule
         for (std::size_t q = 0; q < 3; ++q) {
             const V u = hn::Set(d, kX3[q]);
-            const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), exp_v::ExpNegThin(d, tau(u)));  // τ ≤ kThin
+            const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), ExpNegThin(d, tau(u)));  // τ ≤ kThin
             for (int k = 0; k < 3; ++k) thin[k] = hn::Add(thin[k], hn::Mul(w, source(k, u)));
         }
     }
