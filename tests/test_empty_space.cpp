@@ -11,6 +11,7 @@
 #include "fathom/render.h"
 
 #include "integrate/preintegrated.h"
+#include "integrate/simd_classify.h"
 #include "render/empty_space.h"
 #include "synthetic.h"
 
@@ -133,6 +134,31 @@ TEST(EmptySpace, MacrocellsAreEmptyOnlyWhereTheMediumIsZero) {
     EXPECT_FALSE(EmptySpace::for_scalar(v, tf, Model::mip, 3, 2).any());
     const Classifier none(extinction_tf({{0.0, 0.0}}, {1, 1, 1}), 1.0);
     EXPECT_DOUBLE_EQ(EmptySpace::for_scalar(v, none, Model::absorption, 2, 1).empty_fraction(), 1.0);
+}
+
+// The share of inactive blocks inside non-empty macrocells, by which the
+// renderer keeps or drops the bits: one bright node at (8, 8, 8) of a 17³
+// grid lies on the shared faces of 2 macrocells (4 cells) and 2 blocks
+// (2 cells) per axis, so 8 macrocells holding 4³ blocks are non-empty and 8
+// of those blocks active: 56 of 64 clear.
+TEST(EmptySpace, InactiveShareCountsTheBlocksOfNonEmptyMacrocells) {
+    const Classifier tf(blob_tf(), 1.0);  // σ = 0 below 0.3
+    Volume v({17, 17, 17}, DType::f32);
+    const auto share = [&] {
+        const EmptySpace es = EmptySpace::for_scalar(v, tf, Model::emission_absorption, 2, 1);
+        return es.inactive_share(simd::active_cells(v, 0.3, 1));
+    };
+    EXPECT_EQ(share(), 0.0);  // no non-empty macrocell
+    v.set_value(8, 8, 8, 1.0);
+    EXPECT_DOUBLE_EQ(share(), 56.0 / 64.0);
+    v.set_value(9, 8, 8, 1.0);  // inside blocks 4 and macrocells 2 along x: nothing new
+    EXPECT_DOUBLE_EQ(share(), 56.0 / 64.0);
+    v.set_value(0, 0, 0, 1.0);  // macrocell (0, 0, 0) and its block (0, 0, 0): 7 of 8 more clear
+    EXPECT_DOUBLE_EQ(share(), 63.0 / 72.0);
+    for (std::int64_t k = 0; k < 17; ++k)
+        for (std::int64_t j = 0; j < 17; ++j)
+            for (std::int64_t i = 0; i < 17; ++i) v.set_value(i, j, k, 0.5);
+    EXPECT_EQ(share(), 0.0);  // every block active
 }
 
 // The classification against brute force, both ways: a macrocell is empty

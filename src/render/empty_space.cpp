@@ -353,4 +353,25 @@ double EmptySpace::empty_fraction() const {
     return static_cast<double>(n) / static_cast<double>(empty_.size());
 }
 
+double EmptySpace::inactive_share(const std::vector<std::uint32_t>& blocks) const {
+    // blocks per axis, ⌊nodes / 2⌋ as simd::active_cells counts them
+    const std::int64_t bx = nodes_[0] / 2, by = nodes_[1] / 2, bz = nodes_[2] / 2;
+    const int per = 1 << (shift_ - 1);  // blocks per macrocell edge
+    std::int64_t total = 0, clear = 0;
+    for (std::int64_t mz = 0; mz < dims_[2]; ++mz)
+        for (std::int64_t my = 0; my < dims_[1]; ++my)
+            for (std::int64_t mx = 0; mx < dims_[0]; ++mx) {
+                if (empty({mx, my, mz})) continue;
+                for (std::int64_t z = mz * per; z < std::min((mz + 1) * per, bz); ++z)
+                    for (std::int64_t y = my * per; y < std::min((my + 1) * per, by); ++y)
+                        for (std::int64_t x = mx * per; x < std::min((mx + 1) * per, bx); ++x) {
+                            const std::int64_t b = x + bx * (y + by * z);
+                            ++total;
+                            clear +=
+                                ((blocks[static_cast<std::size_t>(b >> 5)] >> (b & 31)) & 1u) == 0 ? 1 : 0;
+                        }
+            }
+    return total == 0 ? 0.0 : static_cast<double>(clear) / static_cast<double>(total);
+}
+
 }  // namespace fathom

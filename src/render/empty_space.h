@@ -112,6 +112,10 @@ public:
     /// interval, and a pre-integrated segment between them is empty too.
     [[nodiscard]] bool joins_empty() const { return joins_empty_; }
     [[nodiscard]] double empty_fraction() const;
+    /// The share of the blocks of 2×2×2 cells inside non-empty macrocells
+    /// (the shift must be at least 1) whose bit in `blocks` is clear:
+    /// simd::active_cells's bits of this lattice. 0 without non-empty ones.
+    [[nodiscard]] double inactive_share(const std::vector<std::uint32_t>& blocks) const;
 
     /// The frame's PixelBounds for `camera` and a width × height image of a
     /// lattice placed by `axes` (index → world) and `origin`: the box of

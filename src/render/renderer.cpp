@@ -41,6 +41,11 @@ namespace {
 /// (docs/performance.md).
 constexpr int kMacrocellShift = 2;
 
+/// The least share of inactive blocks inside non-empty macrocells at which
+/// the inactive-block bits pay (docs/performance.md, "Blocks in the
+/// medium's zero range": measured on real volumes at shares of 0.01–0.43).
+constexpr double kInactiveShareWorth = 0.15;
+
 /// How far a step along v (index space) moves across the volume's rows.
 double row_drift(const Vec3& v) {
     return std::hypot(v.y, v.z);
@@ -81,6 +86,12 @@ Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSetti
                                    impl_->s.integrator == IntegratorKind::riemann;  // classify_batch's users
         if (impl_->s.skip_empty && point_sampled && std::isfinite(impl_->batch.zero_below)) {
             impl_->active_cells = simd::active_cells(volume, impl_->batch.zero_below, impl_->s.threads);
+            // The bits cost a gather per vector and pay where the vectors the
+            // walk evaluates often lie wholly in inactive blocks: kept where
+            // enough of the blocks inside the non-empty macrocells are.
+            if (!impl_->active_cells.empty() &&
+                impl_->empty_space.inactive_share(impl_->active_cells) < kInactiveShareWorth)
+                impl_->active_cells = {};
             if (!impl_->active_cells.empty()) impl_->batch.active = impl_->active_cells.data();
         }
     }
