@@ -229,6 +229,9 @@ TEST(Cli, BenchReportsFrameTimesAsJson) {
     EXPECT_DOUBLE_EQ(j["first_image_seconds"].get<double>(), j["load_seconds"].get<double>() +
                                                                  j["setup_seconds"].get<double>() +
                                                                  j["first_seconds"].get<double>());
+    EXPECT_EQ(j["bricks"], false);  // below RenderSettings::brick_min_bytes
+    EXPECT_GT(j["volume_bytes"].get<double>(), 0.0);
+    EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 1 --no-bricks", d).status, 0);
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 0", d).status, 2);
 }
 

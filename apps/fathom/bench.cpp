@@ -54,12 +54,16 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 void run_bench(const BenchArgs& a) {
     if (a.frames < 1) throw UsageError("--frames must be at least 1");
     const auto t_load = std::chrono::steady_clock::now();
-    const Scene sc = a.scene.load("bench");
+    Scene sc = a.scene.load("bench");
     const double load_s = seconds_since(t_load);
-    const auto t_setup = std::chrono::steady_clock::now();
-    const Renderer r = sc.renderer();
-    const double setup_s = seconds_since(t_setup);
+    // what the report needs of the volume, which the renderer takes over
     const Vec3 center = volume_bounds(sc.volume).center;
+    const auto dims = sc.volume.dims();
+    const DType dtype = sc.volume.dtype();
+    const auto volume_bytes = static_cast<double>(sc.volume.size_bytes());
+    const auto t_setup = std::chrono::steady_clock::now();
+    const Renderer r = sc.take_renderer();
+    const double setup_s = seconds_since(t_setup);
     std::vector<double> times;
     std::uint64_t segments = 0;
     for (int f = 0; f < a.frames; ++f) {
@@ -86,14 +90,15 @@ void run_bench(const BenchArgs& a) {
                      {"threads", threads},
                      {"frames", a.frames},
                      {"preset", a.scene.preset},
-                     {"dims", sc.volume.dims()},
-                     {"dtype", std::string(dtype_name(sc.volume.dtype()))},
+                     {"dims", dims},
+                     {"dtype", std::string(dtype_name(dtype))},
                      {"skip_empty", sc.settings.skip_empty},
+                     {"bricks", r.bricked()},
                      {"cpu", cpu_name()},
                      {"hardware_threads", std::thread::hardware_concurrency()},
                      {"load_seconds", load_s},
                      {"setup_seconds", setup_s},
-                     {"volume_bytes", static_cast<double>(sc.volume.size_bytes())},
+                     {"volume_bytes", volume_bytes},
                      {"peak_rss_bytes", peak_rss_bytes()},
                      {"frame_seconds", times},
                      {"median_seconds", median},

@@ -139,7 +139,10 @@ void run_render(const RenderArgs& a) {
     scene.settings.depth_outputs = !a.depth_out.empty() || !a.first_hit_out.empty() || a.depth_channels;
     if (!a.transforms.empty() && scene.camera.projection != Projection::perspective)
         throw UsageError("--transforms needs a perspective camera (NeRF sets have a field of view)");
-    const Renderer renderer = scene.renderer();
+    // A turntable's renderer takes the volume over (its frames pay for the
+    // bricks; one image would not: docs/performance.md "Bricks").
+    const Vec3 center = volume_bounds(scene.volume).center;
+    const Renderer renderer = a.orbit_frames > 0 ? scene.take_renderer() : scene.renderer();
     if (a.orbit_frames == 0) {
         Progress progress(!a.quiet);
         const Image image = renderer.render(scene.camera, [&](int d, int t) { progress(d, t); });
@@ -149,7 +152,6 @@ void run_render(const RenderArgs& a) {
         return;
     }
     // A turntable: frame f turned f·360/N degrees about the box centre's vertical axis.
-    const Vec3 center = volume_bounds(scene.volume).center;
     std::vector<fs::path> files;
     std::vector<Camera> cams;
     std::unique_ptr<VideoWriter> video;

@@ -64,10 +64,10 @@ void run_views(const ViewsArgs& a) {
     if (scene.camera.projection != Projection::perspective)
         throw UsageError("views needs a perspective camera (NeRF sets have a field of view)");
     scene.settings.transparent = true;  // alpha is coverage (SPEC §9)
-    const Renderer renderer = scene.renderer();
     const Bounds b = volume_bounds(scene.volume);
     const double distance = length(scene.camera.position - b.center) / b.radius;
     const auto box = world_box(scene.volume);
+    const Renderer renderer = scene.take_renderer();  // the volume is not needed after this
     const RenderSettings& s = scene.settings;
     const double fov_y = scene.camera.fov_y_deg * std::numbers::pi / 180.0;
     const double angle_x = 2.0 * std::atan(std::tan(fov_y / 2.0) * s.width / s.height);

@@ -133,6 +133,13 @@ struct RenderSettings {
     /// SIMD classification of point samples (riemann, alpha) with runtime
     /// dispatch; bit-identical to the scalar path. Off only to measure it.
     bool simd = true;
+    /// A renderer that keeps its volume (Renderer(Volume&&, ...)) moves the
+    /// samples into bricks of 32³ cells (10 % more bytes; the x-fastest
+    /// copy is handed back as they fill) where the volume has at least this
+    /// many bytes and its frames take the unshaded SIMD path of an optical
+    /// model; the image is unchanged bit for bit. 64 MiB by default: smaller
+    /// volumes stay in cache well enough (docs/performance.md "Bricks").
+    std::uint64_t brick_min_bytes = std::uint64_t{64} << 20;
 
     /// I_bg as the contract resolves it.
     [[nodiscard]] Rgb background_radiance() const;
@@ -160,6 +167,11 @@ public:
     /// distance defaults to the volume's smallest spacing). The volume must
     /// outlive the renderer.
     Renderer(const Volume& volume, const TransferFunction& tf, RenderSettings settings);
+    /// The same, the renderer keeping the volume: a large one it may
+    /// rearrange into bricks in place (RenderSettings::brick_min_bytes),
+    /// which speeds up views along the volume's slices without a second copy
+    /// in memory. The image is the same bit for bit.
+    Renderer(Volume&& volume, const TransferFunction& tf, RenderSettings settings);
     /// Pre-classified grids: density (1 component) and RGB color (3
     /// components) on the same lattice, float32 or float64.
     Renderer(const Volume& density, const Volume& color, RenderSettings settings);
@@ -168,6 +180,8 @@ public:
     Renderer& operator=(Renderer&&) noexcept;
 
     [[nodiscard]] const RenderSettings& settings() const;
+    /// Whether the renderer samples its volume from bricks.
+    [[nodiscard]] bool bricked() const;
     /// The ray integral of one ray (world-space origin and unit direction).
     [[nodiscard]] RayResult trace(const Ray& ray) const;
     /// The whole image; tiles over threads; the result does not depend on

@@ -29,6 +29,10 @@ struct Scene {
     /// A renderer over this scene's medium with its settings (or others).
     [[nodiscard]] Renderer renderer() const { return renderer(settings); }
     [[nodiscard]] Renderer renderer(const RenderSettings& s) const;
+    /// The same, handed this scene's scalar volume (left empty): a large one
+    /// may go into bricks in place (Renderer(Volume&&, ...)). Pre-classified
+    /// grids are shared as by renderer().
+    [[nodiscard]] Renderer take_renderer();
 };
 
 /// Overrides of a scene's render settings: the render flags of `fathom
@@ -45,6 +49,7 @@ struct SceneOverrides {
     bool jitter = false;         // turns jitter on
     bool no_skip_empty = false;  // turns empty-space skipping off
     bool no_simd = false;        // turns SIMD classification off
+    bool no_bricks = false;      // keeps the volume x-fastest (RenderSettings::brick_min_bytes)
     bool shade = false;          // turns shading on
     std::optional<std::uint32_t> jitter_seed;
     /// Isosurfaces, each VALUE[,R,G,B[,OPACITY]]: replace the scene's and

@@ -10,6 +10,7 @@
 
 #include "core/parallel.h"
 #include "integrate/point_rules.h"
+#include "volume/bricks.h"
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "integrate/simd_classify.cpp"
@@ -125,6 +126,26 @@ HWY_INLINE void gather_pair(DI di, const BatchSource& src, VI o, VI last, VI& lo
     }
 }
 
+/// Bricks::cell_index of lanes b … b + N − 1 of the cells, in doubles
+/// (exact: every term is an integer below 2³¹).
+HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch], std::size_t b) {
+    const V per = hn::Set(d, 1.0 / static_cast<double>(Bricks::kCells)),
+            edge = hn::Set(d, static_cast<double>(Bricks::kCells));
+    V brick[3], local[3];
+    for (int a = 0; a < 3; ++a) {
+        const V c = hn::Load(d, cell[a] + b);
+        brick[a] = hn::Floor(hn::Mul(c, per));  // kCells is a power of two: exact
+        local[a] = hn::Sub(c, hn::Mul(brick[a], edge));
+    }
+    const V nodes = hn::Set(d, static_cast<double>(Bricks::kNodes));
+    const V index =
+        hn::Add(brick[0],
+                hn::Mul(hn::Set(d, static_cast<double>(src.bricks_x)),
+                        hn::Add(brick[1], hn::Mul(hn::Set(d, static_cast<double>(src.bricks_y)), brick[2]))));
+    const V within = hn::Add(local[0], hn::Mul(nodes, hn::Add(local[1], hn::Mul(nodes, local[2]))));
+    return hn::Add(hn::Mul(index, hn::Set(d, static_cast<double>(Bricks::kBrickNodes))), within);
+}
+
 /// GridSampler::interpolate of vectors of cells and fractions, the corners
 /// gathered in pairs (q[0], q[1]) per row: the same values, the same
 /// operations, so the same bits as the scalar fetch.
@@ -135,16 +156,17 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     const D d;
     const std::size_t N = hn::Lanes(d);
     constexpr std::int64_t size = sizeof(T);
-    const std::int64_t sy = src.nx * size, sz = sy * src.ny;
+    // the rows of a cell's corners: in a brick, kNodes and kNodes² apart
+    const bool bricked = src.bricks_x > 0;
+    const std::int64_t sy = (bricked ? Bricks::kNodes : src.nx) * size,
+                       sz = sy * (bricked ? Bricks::kNodes : src.ny);
     const std::int64_t rows[4] = {0, sy, sz, sz + sy};
+    const std::int64_t stored =
+        bricked ? src.bricks_x * src.bricks_y * src.bricks_z * Bricks::kBrickNodes : src.nx * src.ny * src.nz;
     const V nx = hn::Set(d, static_cast<double>(src.nx)), ny = hn::Set(d, static_cast<double>(src.ny));
     const V bx = hn::Set(d, static_cast<double>(src.nx / 2)),
             by = hn::Set(d, static_cast<double>(src.ny / 2));
     for (std::size_t b = 0; b < used; b += N) {
-        // the byte offset of the cell's first node: an exact integer in doubles
-        const V node =
-            hn::Add(hn::Load(d, cell[0] + b),
-                    hn::Mul(nx, hn::Add(hn::Load(d, cell[1] + b), hn::Mul(ny, hn::Load(d, cell[2] + b)))));
         if (skip_inactive) {  // no block with a node at or above zero_below: every value is below it
             const hn::Rebind<std::int32_t, D> di;
             const V half = hn::Set(d, 0.5);
@@ -159,7 +181,13 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
                 continue;
             }
         }
-        const V bytes = hn::Mul(node, hn::Set(d, static_cast<double>(size)));
+        // the byte offset of the cell's first node: an exact integer in doubles
+        const V bytes =
+            hn::Mul(bricked ? brick_node(d, src, cell, b)
+                            : hn::Add(hn::Load(d, cell[0] + b),
+                                      hn::Mul(nx, hn::Add(hn::Load(d, cell[1] + b),
+                                                          hn::Mul(ny, hn::Load(d, cell[2] + b))))),
+                    hn::Set(d, static_cast<double>(size)));
         V c[8];
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
             const hn::Rebind<std::int64_t, D> dl;
@@ -176,7 +204,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
         } else {
             const hn::Rebind<std::int32_t, D> di;
             const auto off = hn::DemoteTo(di, bytes);
-            const auto last = hn::Set(di, static_cast<std::int32_t>(src.nx * src.ny * src.nz * size - 4));
+            const auto last = hn::Set(di, static_cast<std::int32_t>(stored * size - 4));
             for (int r = 0; r < 4; ++r) {
                 hn::Vec<decltype(di)> lo, hi;
                 gather_pair<T>(di, src, hn::Add(off, hn::Set(di, static_cast<std::int32_t>(rows[r]))), last,
@@ -233,7 +261,7 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
     if constexpr (kPairs<T>) {
         // Each gather fetches a corner and its +x neighbour at once (4
         // gathers for 8 corners), in vectors.
-        if (sizeof(T) == 4 ||
+        if (sizeof(T) == 4 || src.bricks_x > 0 ||
             src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
             pair_corners<T>(src, cell, frac, used, out, skip_inactive && src.active != nullptr);
             return used;

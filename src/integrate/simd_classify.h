@@ -36,6 +36,9 @@ constexpr bool kPairs =
     std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::int8_t> || std::is_same_v<T, std::uint16_t> ||
     std::is_same_v<T, std::int16_t> || std::is_same_v<T, float>;
 
+/// The most bytes of bricks the paired gathers address (int32 byte offsets).
+inline constexpr std::int64_t kBricksBytesMax = std::int64_t{1} << 30;
+
 /// A piecewise-linear function flattened for lane-parallel evaluation.
 struct FlatFunction {
     std::vector<double> knots;
@@ -76,6 +79,10 @@ struct BatchSource {
     /// scalar rule does (the same bits). For unshaded scalar media only.
     PointRule rule = PointRule::none;
     Model model = Model::emission_absorption;
+    /// Bricks along x, y and z where `data` holds the samples in bricks
+    /// (volume/bricks.h; the paired sample types only, at most 1 GiB); 0:
+    /// `data` is x-fastest.
+    std::int64_t bricks_x = 0, bricks_y = 0, bricks_z = 0;
 };
 
 /// Blocks of 2 × 2 × 2 cells (3³ nodes, clipped to the lattice), bx = nx/2

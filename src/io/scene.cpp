@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
+#include <limits>
 
 #include <nlohmann/json.hpp>
 
@@ -355,6 +356,11 @@ Renderer Scene::renderer(const RenderSettings& s) const {
     return Renderer(volume, tf, s);
 }
 
+Renderer Scene::take_renderer() {
+    if (color) return renderer(settings);
+    return Renderer(std::move(volume), tf, settings);
+}
+
 Scene parse_scene(std::string_view json_text, const fs::path& base_dir, const std::string& subject) {
     const Ctx cx{subject, base_dir};
     const json j = parse_json_text(json_text, subject);
@@ -398,6 +404,7 @@ void apply_overrides(RenderSettings& s, const SceneOverrides& o, const std::stri
     if (o.jitter) s.jitter = true;
     if (o.no_skip_empty) s.skip_empty = false;
     if (o.no_simd) s.simd = false;
+    if (o.no_bricks) s.brick_min_bytes = std::numeric_limits<std::uint64_t>::max();
     if (o.shade) s.shading.enabled = true;
     if (!o.gradient.empty()) {
         if (o.gradient != "on-the-fly" && o.gradient != "precomputed")

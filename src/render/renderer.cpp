@@ -55,7 +55,8 @@ double row_drift(const Vec3& v) {
 
 void setup_lattice(Renderer::Impl& im, const Volume& lattice) {
     im.s.validate();
-    im.lattice = &lattice;
+    im.dims = lattice.dims();
+    im.axes = lattice.axes();
     im.world_to_index = lattice.axes().inverse();
     im.origin = lattice.origin();
     im.h = im.s.step_world ? im.s.step : im.s.step * lattice.smallest_spacing();
@@ -64,73 +65,100 @@ void setup_lattice(Renderer::Impl& im, const Volume& lattice) {
 
 Renderer::Renderer(const Volume& volume, const TransferFunction& tf, RenderSettings settings)
     : impl_(std::make_unique<Impl>()) {
-    impl_->s = settings;
+    impl_->setup_scalar(volume, tf, std::move(settings), false);
+}
+
+Renderer::Renderer(Volume&& volume, const TransferFunction& tf, RenderSettings settings)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->owned = std::move(volume);
+    impl_->setup_scalar(impl_->owned, tf, std::move(settings), true);
+}
+
+bool Renderer::bricked() const {
+    return !impl_->bricks.empty();
+}
+
+void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& transfer,
+                                  RenderSettings settings, bool own) {
+    s = std::move(settings);
     check_lattice(volume, "volume");
     if (volume.components() != 1)
         throw Error("volume",
                     "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
-    setup_lattice(*impl_, volume);
-    impl_->tf = Classifier(tf, volume.smallest_spacing());
-    if (impl_->s.skip_empty)
-        impl_->empty_space =
-            EmptySpace::for_scalar(volume, impl_->tf, impl_->s.model, kMacrocellShift, impl_->s.threads);
-    if (impl_->s.simd) {
-        impl_->flat_sigma = simd::flatten(impl_->tf.sigma_function());
-        impl_->flat_color = simd::flatten(impl_->tf.color_function());
-        impl_->batch = {
-            volume.bytes(),   volume.dtype(),     volume.dims()[0],   volume.dims()[1],
-            volume.dims()[2], &impl_->flat_sigma, &impl_->flat_color, zero_below(impl_->tf, impl_->s.model)};
-        impl_->batch.breaks = &impl_->tf.breakpoints();
-        impl_->batch.associated = impl_->tf.associated();
-        const bool point_sampled = impl_->s.integrator == IntegratorKind::alpha ||
-                                   impl_->s.integrator == IntegratorKind::riemann;  // classify_batch's users
-        if (impl_->s.skip_empty && point_sampled && std::isfinite(impl_->batch.zero_below)) {
-            impl_->active_cells = simd::active_cells(volume, impl_->batch.zero_below, impl_->s.threads);
+    setup_lattice(*this, volume);
+    tf = Classifier(transfer, volume.smallest_spacing());
+    if (s.skip_empty) empty_space = EmptySpace::for_scalar(volume, tf, s.model, kMacrocellShift, s.threads);
+    if (s.simd) {
+        flat_sigma = simd::flatten(tf.sigma_function());
+        flat_color = simd::flatten(tf.color_function());
+        batch = {volume.bytes(),   volume.dtype(), volume.dims()[0], volume.dims()[1],
+                 volume.dims()[2], &flat_sigma,    &flat_color,      zero_below(tf, s.model)};
+        batch.breaks = &tf.breakpoints();
+        batch.associated = tf.associated();
+        const bool point_sampled = s.integrator == IntegratorKind::alpha ||
+                                   s.integrator == IntegratorKind::riemann;  // classify_batch's users
+        if (s.skip_empty && point_sampled && std::isfinite(batch.zero_below)) {
+            active_cells = simd::active_cells(volume, batch.zero_below, s.threads);
             // The bits cost a gather per vector and pay where the vectors the
             // walk evaluates often lie wholly in inactive blocks: kept where
             // enough of the blocks inside the non-empty macrocells are.
-            if (!impl_->active_cells.empty() &&
-                impl_->empty_space.inactive_share(impl_->active_cells) < kInactiveShareWorth)
-                impl_->active_cells = {};
-            if (!impl_->active_cells.empty()) impl_->batch.active = impl_->active_cells.data();
+            if (!active_cells.empty() && empty_space.inactive_share(active_cells) < kInactiveShareWorth)
+                active_cells = {};
+            if (!active_cells.empty()) batch.active = active_cells.data();
         }
     }
-    const Shading& sh = impl_->s.shading;
-    const Model model = impl_->s.model;
+    const Shading& sh = s.shading;
+    const Model model = s.model;
     const bool lit = sh.enabled && model == Model::emission_absorption;
     const bool optical =
         model == Model::emission_absorption || model == Model::absorption || model == Model::emission;
-    const bool modulated = optical && impl_->tf.has_gradient_opacity();
+    const bool modulated = optical && tf.has_gradient_opacity();
     const bool gradient_work = lit || modulated;
     if (gradient_work || model == Model::isosurface) {  // isosurfaces are always lit
-        impl_->shade = {sh.ambient,   sh.diffuse, sh.specular, sh.shininess, {}, impl_->world_to_index,
-                        volume.axes()};
+        shade = {sh.ambient, sh.diffuse, sh.specular, sh.shininess, {}, world_to_index, volume.axes()};
         for (Light l : sh.lights) {
             l.direction = l.direction * (1.0 / length(l.direction));
-            impl_->shade.lights.push_back(l);
+            shade.lights.push_back(l);
         }
-        impl_->shade.light = lit || model == Model::isosurface;
-        impl_->shade.modulate = modulated ? &impl_->tf : nullptr;
-        if (gradient_work && impl_->s.gradient == GradientSource::precomputed) {
+        shade.light = lit || model == Model::isosurface;
+        shade.modulate = modulated ? &tf : nullptr;
+        if (gradient_work && s.gradient == GradientSource::precomputed) {
             const std::uint64_t bytes = static_cast<std::uint64_t>(volume.num_nodes()) * 3 * sizeof(float);
-            if (bytes <= impl_->s.gradient_memory) {
-                impl_->gradients = node_gradients(volume, impl_->world_to_index, impl_->s.threads);
-                impl_->shade.gradients = &impl_->gradients;
+            if (bytes <= s.gradient_memory) {
+                gradients = node_gradients(volume, world_to_index, s.threads);
+                shade.gradients = &gradients;
             } else {
                 warn("gradient volume of " + std::to_string(bytes >> 20) + " MiB exceeds the limit of " +
-                     std::to_string(impl_->s.gradient_memory >> 20) +
-                     " MiB: gradients are computed on the fly");
+                     std::to_string(s.gradient_memory >> 20) + " MiB: gradients are computed on the fly");
             }
         }
     }
     // Unshaded point sampling: the classifier applies the segment rule too.
-    if (impl_->batch.data != nullptr && optical && !gradient_work) {
-        impl_->batch.model = model;
-        if (impl_->s.integrator == IntegratorKind::alpha) impl_->batch.rule = simd::PointRule::alpha;
-        if (impl_->s.integrator == IntegratorKind::riemann) impl_->batch.rule = simd::PointRule::riemann;
+    if (batch.data != nullptr && optical && !gradient_work) {
+        batch.model = model;
+        if (s.integrator == IntegratorKind::alpha) batch.rule = simd::PointRule::alpha;
+        if (s.integrator == IntegratorKind::riemann) batch.rule = simd::PointRule::riemann;
     }
-    impl_->tracer = visit_dtype(volume.dtype(),
-                                [&]<class T>(T*) { return scalar_tracer<T>(volume, *impl_, gradient_work); });
+    // An owned volume in bricks where they pay: the unshaded SIMD path
+    // (the only one that reads bricks) over a large volume of a paired type.
+    const DType type = volume.dtype();
+    const bool paired = type == DType::u8 || type == DType::i8 || type == DType::u16 || type == DType::i16 ||
+                        type == DType::f32;
+    if (own && paired && batch.data != nullptr && optical && !gradient_work &&
+        s.integrator != IntegratorKind::reference && volume.size_bytes() >= s.brick_min_bytes &&
+        Bricks::bytes_for(volume) <= simd::kBricksBytesMax) {
+        bricks = Bricks(owned, true, s.threads);
+        owned = Volume();  // its pages went back as the bricks filled
+        batch.data = bricks.bytes();
+        batch.bricks_x = bricks.bricks_x();
+        batch.bricks_y = bricks.bricks_y();
+        batch.bricks_z = bricks.bricks_z();
+    }
+    // (Bricked, the tracer's scalar sampler holds no samples: nothing on
+    // that path reads it.)
+    tracer = visit_dtype(type, [&]<class T>(T*) {
+        return scalar_tracer<T>(bricks.empty() ? volume : owned, *this, gradient_work);
+    });
 }
 
 Renderer::Renderer(const Volume& density, const Volume& color, RenderSettings settings)
@@ -182,7 +210,7 @@ PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
         s.model == Model::emission_absorption || s.model == Model::absorption || s.model == Model::emission;
     const EmptySpace* es = skipper();
     if (es == nullptr || !segments || !zero_able) return {};
-    return es->pixel_bounds(camera, s.width, s.height, lattice->axes(), origin, s.threads);
+    return es->pixel_bounds(camera, s.width, s.height, axes, origin, s.threads);
 }
 
 RayResult Renderer::trace(const Ray& ray) const {

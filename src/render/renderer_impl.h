@@ -13,6 +13,7 @@
 #include "integrate/ray_span.h"
 #include "render/empty_space.h"
 #include "render/shading.h"
+#include "volume/bricks.h"
 
 namespace fathom {
 
@@ -20,7 +21,8 @@ using Tracer = std::function<RayResult(const RaySpan&)>;
 
 struct Renderer::Impl {
     RenderSettings s;
-    const Volume* lattice = nullptr;  // the volume whose lattice and placement rays use
+    std::array<std::int64_t, 3> dims{0, 0, 0};  // the lattice rays cross
+    Mat3 axes;                                  // and its placement (index → world)
     Classifier tf;
     Mat3 world_to_index;
     Vec3 origin;
@@ -30,9 +32,16 @@ struct Renderer::Impl {
     simd::FlatFunction flat_sigma, flat_color;
     simd::BatchSource batch;                  // batch.data == nullptr: no SIMD
     std::vector<std::uint32_t> active_cells;  // batch.active
+    Volume owned;   // the volume, where the renderer took it over (emptied once in bricks)
+    Bricks bricks;  // its samples in bricks, where they pay (batch.data then points here)
     ShadeSetup shade;
     Volume gradients;  // precomputed node gradients (GradientSource::precomputed)
     Tracer tracer;
+
+    /// Renderer(volume, tf, settings); `own`: volume is `owned`, which may
+    /// go into bricks.
+    void setup_scalar(const Volume& volume, const TransferFunction& transfer, RenderSettings settings,
+                      bool own);
 
     /// The macrocells to skip, or nullptr when skipping is off or useless.
     [[nodiscard]] const EmptySpace* skipper() const {
@@ -45,7 +54,7 @@ struct Renderer::Impl {
     [[nodiscard]] bool span_of(const Ray& ray, RaySpan& span) const {
         const Vec3 p0 = world_to_index * (ray.origin - origin);
         const Vec3 dp = world_to_index * ray.dir;
-        if (!intersect_box(p0, dp, lattice->dims(), span)) return false;
+        if (!intersect_box(p0, dp, dims, span)) return false;
         if (!s.crop && s.clip_planes.empty()) return true;
         double t0 = span.t_near, t1 = span.t_far;
         if (s.crop) {

@@ -1,0 +1,110 @@
+#include "volume/bricks.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <utility>
+
+#ifdef __linux__
+#include <sys/mman.h>
+#endif
+
+#include "fathom/error.h"
+
+#include "core/parallel.h"
+
+namespace fathom {
+
+namespace {
+
+constexpr std::uintptr_t kPage = 4096;
+
+/// Hands the whole pages of [from, to) back to the system (their contents
+/// read as zeros afterwards); returns the end of the last page handed back
+/// (`from` where none was).
+std::byte* release_pages(std::byte* from, std::byte* to) {
+    const auto a = (reinterpret_cast<std::uintptr_t>(from) + kPage - 1) / kPage * kPage;
+    const auto b = reinterpret_cast<std::uintptr_t>(to) / kPage * kPage;
+    if (b <= a) return from;
+#ifdef MADV_DONTNEED
+    madvise(reinterpret_cast<void*>(a), b - a, MADV_DONTNEED);
+#endif
+    return from + (b - reinterpret_cast<std::uintptr_t>(from));
+}
+
+std::int64_t bricks_along(std::int64_t n) {
+    return (n - 2) / Bricks::kCells + 1;
+}  // ⌈(n − 1)/kCells⌉
+
+}  // namespace
+
+std::uint64_t Bricks::bytes_for(const Volume& v) {
+    const auto& d = v.dims();
+    return static_cast<std::uint64_t>(bricks_along(d[0]) * bricks_along(d[1]) * bricks_along(d[2])) *
+           static_cast<std::uint64_t>(kBrickNodes) * dtype_size(v.dtype());
+}
+
+Bricks::Bricks(Volume& v, bool release, int threads) {
+    const auto& d = v.dims();
+    if (v.components() != 1 || d[0] < 2 || d[1] < 2 || d[2] < 2)
+        throw Error("bricks", "need a 1-component volume with at least 2 samples along each axis");
+    for (int a = 0; a < 3; ++a) nb_[a] = bricks_along(d[a]);
+    const std::size_t sz = dtype_size(v.dtype());
+    size_ = static_cast<std::size_t>(bytes_for(v));
+    // Not zero-filled: every byte is written below, and pages are touched
+    // only as their slab is.
+    data_ = static_cast<std::byte*>(detail::allocate_samples(size_));
+    std::byte* src = v.bytes();
+    const auto row = static_cast<std::size_t>(d[0]) * sz, plane = row * static_cast<std::size_t>(d[1]);
+    const std::int64_t per_slab = nb_[0] * nb_[1];
+    std::byte* released = src;  // the pages before it are handed back
+    for (std::int64_t bz = 0; bz < nb_[2]; ++bz) {
+        parallel_chunks(per_slab, threads, [&](std::int64_t b0, std::int64_t b1) {
+            for (std::int64_t b = b0; b < b1; ++b) {
+                const std::int64_t bx = b % nb_[0], by = b / nb_[0];
+                std::byte* out = data_ + static_cast<std::size_t>((bz * per_slab + b) * kBrickNodes) * sz;
+                const std::int64_t x0 = bx * kCells, run = std::min(kNodes, d[0] - x0);
+                for (std::int64_t z = 0; z < kNodes; ++z) {
+                    const std::int64_t gz = std::min(bz * kCells + z, d[2] - 1);
+                    for (std::int64_t y = 0; y < kNodes; ++y, out += kNodes * sz) {
+                        const std::int64_t gy = std::min(by * kCells + y, d[1] - 1);
+                        const std::byte* in = src + static_cast<std::size_t>(gz) * plane +
+                                              static_cast<std::size_t>(gy) * row +
+                                              static_cast<std::size_t>(x0) * sz;
+                        std::memcpy(out, in, static_cast<std::size_t>(run) * sz);
+                        // past the lattice (no cell reads these; written so
+                        // that no byte a gather fetches is undefined)
+                        for (std::int64_t x = run; x < kNodes; ++x)
+                            std::memcpy(out + x * sz, in + (run - 1) * sz, sz);
+                    }
+                }
+            }
+        });
+        if (release) {  // the next slab starts at plane kCells·(bz + 1)
+            const std::size_t done =
+                std::min(v.size_bytes(), static_cast<std::size_t>(kCells * (bz + 1)) * plane);
+            released = release_pages(released, src + done);
+        }
+    }
+}
+
+Bricks::~Bricks() {
+    if (data_ != nullptr) detail::free_samples(data_, size_);
+}
+
+Bricks::Bricks(Bricks&& o) noexcept
+    : data_(std::exchange(o.data_, nullptr)),
+      size_(std::exchange(o.size_, 0)),
+      nb_{o.nb_[0], o.nb_[1], o.nb_[2]} {}
+
+Bricks& Bricks::operator=(Bricks&& o) noexcept {
+    if (this != &o) {
+        if (data_ != nullptr) detail::free_samples(data_, size_);
+        data_ = std::exchange(o.data_, nullptr);
+        size_ = std::exchange(o.size_, 0);
+        std::copy(o.nb_, o.nb_ + 3, nb_);
+    }
+    return *this;
+}
+
+}  // namespace fathom
