@@ -92,9 +92,6 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     }
 }
 
-/// Byte offsets of 8- and 16-bit samples stay in int32 lanes.
-constexpr std::int64_t kPairBytesMax = std::int64_t{1} << 30;
-
 /// The pair (q[0], q[1]) at byte offsets `o` (int32 lanes) of 8- and 16-bit
 /// samples, as int32 lanes. 8-bit reads that would pass the array's last
 /// word `last` are moved back and the word shifted.

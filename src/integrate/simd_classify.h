@@ -36,8 +36,9 @@ constexpr bool kPairs =
     std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::int8_t> || std::is_same_v<T, std::uint16_t> ||
     std::is_same_v<T, std::int16_t> || std::is_same_v<T, float>;
 
-/// The most bytes of bricks the paired gathers address (int32 byte offsets).
-inline constexpr std::int64_t kBricksBytesMax = std::int64_t{1} << 30;
+/// The most bytes of samples, x-fastest or in bricks, whose 8- and 16-bit
+/// pairs are gathered (their byte offsets stay in int32 lanes).
+inline constexpr std::int64_t kPairBytesMax = std::int64_t{1} << 30;
 
 /// A piecewise-linear function flattened for lane-parallel evaluation.
 struct FlatFunction {

@@ -142,11 +142,10 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     // An owned volume in bricks where they pay: the unshaded SIMD path
     // (the only one that reads bricks) over a large volume of a paired type.
     const DType type = volume.dtype();
-    const bool paired = type == DType::u8 || type == DType::i8 || type == DType::u16 || type == DType::i16 ||
-                        type == DType::f32;
+    const bool paired = visit_dtype(type, []<class T>(T*) { return simd::kPairs<T>; });
     if (own && paired && batch.data != nullptr && optical && !gradient_work &&
         s.integrator != IntegratorKind::reference && volume.size_bytes() >= s.brick_min_bytes &&
-        Bricks::bytes_for(volume) <= simd::kBricksBytesMax) {
+        Bricks::bytes_for(volume) <= static_cast<std::uint64_t>(simd::kPairBytesMax)) {
         bricks = Bricks(owned, true, s.threads);
         owned = Volume();  // its pages went back as the bricks filled
         batch.data = bricks.bytes();
