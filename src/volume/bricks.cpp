@@ -17,14 +17,16 @@ namespace fathom {
 
 namespace {
 
-constexpr std::uintptr_t kPage = 4096;
+constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
 
 /// Hands the whole pages of [from, to) back to the system (their contents
 /// read as zeros afterwards); returns the end of the last page handed back
-/// (`from` where none was).
+/// (`from` where none was). Whole 2 MiB pages: the samples sit in huge
+/// pages where the system has them, and handing back part of one would
+/// split it.
 std::byte* release_pages(std::byte* from, std::byte* to) {
-    const auto a = (reinterpret_cast<std::uintptr_t>(from) + kPage - 1) / kPage * kPage;
-    const auto b = reinterpret_cast<std::uintptr_t>(to) / kPage * kPage;
+    const auto a = (reinterpret_cast<std::uintptr_t>(from) + kHugePage - 1) / kHugePage * kHugePage;
+    const auto b = reinterpret_cast<std::uintptr_t>(to) / kHugePage * kHugePage;
     if (b <= a) return from;
 #ifdef MADV_DONTNEED
     madvise(reinterpret_cast<void*>(a), b - a, MADV_DONTNEED);
