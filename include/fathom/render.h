@@ -134,10 +134,11 @@ struct RenderSettings {
     /// dispatch; bit-identical to the scalar path. Off only to measure it.
     bool simd = true;
     /// A renderer that keeps its volume (Renderer(Volume&&, ...)) moves the
-    /// samples into bricks of 32³ cells (10 % more bytes; the x-fastest
-    /// copy is handed back as they fill) where the volume has at least this
-    /// many bytes and its frames take the unshaded SIMD path of an optical
-    /// model; the image is unchanged bit for bit. 64 MiB by default: smaller
+    /// samples into bricks of 32³ cells (the x-fastest copy handed back as
+    /// they fill) where the volume has at least this many bytes, the bricks
+    /// take at most a quarter more (10 % on the bunny), and its frames take
+    /// the unshaded SIMD path of an optical model; the image is unchanged
+    /// bit for bit. 64 MiB by default: smaller
     /// volumes stay in cache well enough (docs/performance.md "Bricks").
     std::uint64_t brick_min_bytes = std::uint64_t{64} << 20;
 
