@@ -34,9 +34,10 @@ std::byte* release_pages(std::byte* from, std::byte* to) {
     return from + (b - reinterpret_cast<std::uintptr_t>(from));
 }
 
+/// Bricks along an axis of n nodes: ⌈(n − 1)/kCells⌉.
 std::int64_t bricks_along(std::int64_t n) {
     return (n - 2) / Bricks::kCells + 1;
-}  // ⌈(n − 1)/kCells⌉
+}
 
 }  // namespace
 
