@@ -145,10 +145,11 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     // 32 cells would add a brick along each axis).
     const DType type = volume.dtype();
     const bool paired = visit_dtype(type, []<class T>(T*) { return simd::kPairs<T>; });
+    const std::uint64_t brick_bytes = Bricks::bytes_for(volume);
     if (own && paired && batch.data != nullptr && optical && !gradient_work &&
         s.integrator != IntegratorKind::reference && volume.size_bytes() >= s.brick_min_bytes &&
-        Bricks::bytes_for(volume) <= static_cast<std::uint64_t>(simd::kPairBytesMax) &&
-        Bricks::bytes_for(volume) <= volume.size_bytes() / 4 * 5) {  // at most a quarter more bytes
+        brick_bytes <= static_cast<std::uint64_t>(simd::kPairBytesMax) &&
+        brick_bytes <= volume.size_bytes() / 4 * 5) {  // at most a quarter more bytes
         bricks = Bricks(owned, true, s.threads);
         owned = Volume();  // its pages went back as the bricks filled
         batch.data = bricks.bytes();
