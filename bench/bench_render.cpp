@@ -154,6 +154,7 @@ void roofline_ray(benchmark::State& state) {
     fathom::simd::BatchSource batch{v.bytes(), v.dtype(), 64, 64, 64, &fs, &fc};
     batch.zero_below = fathom::zero_below(c, fathom::Model::emission_absorption);
     batch.breaks = &c.breakpoints();
+    batch.integrals = &c.integrals();
     if (K == fathom::IntegratorKind::alpha) batch.rule = fathom::simd::PointRule::alpha;  // as the Renderer
     const fathom::Accel acc{nullptr, Simd ? &batch : nullptr};
     for (auto _ : state)

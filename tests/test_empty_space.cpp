@@ -341,7 +341,11 @@ TEST(EmptySpace, ZeroRampShortcutMatchesTheFullIntegralBitForBit) {
                         const double vf = a * 0.05, vb = b * 0.05 + 0.013;
                         RampIntegral<M> acc(0.7, full);
                         for_each_ramp_piece(tf, vf, vb, [&](const RampPiece& p) { acc.add(p); });
-                        const Segment want = acc.result(),
+                        // without self-attenuation: the integral functions' difference
+                        const bool integrals = !full && preint::steep_ramp(tf.integrals(), vf, vb);
+                        const Segment want = integrals
+                                                 ? preint::integral_segment<M>(tf.integrals(), vf, vb, 0.7)
+                                                 : acc.result(),
                                       got = preintegrate_scalar<M>(tf, vf, vb, 0.7, full);
                         EXPECT_EQ(std::memcmp(&want, &got, sizeof(Segment)), 0) << vf << " " << vb;
                         if (medium_zero_on(tf, M, std::min(vf, vb), std::max(vf, vb))) ++shortcuts;

@@ -1,5 +1,7 @@
 // Pre-integrated classification (docs/theory.md eqs. (15)–(18)).
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -69,6 +71,72 @@ TEST(Preintegrated, SegmentIntegralsMatchBruteForce) {
             }
         }
     }
+}
+
+// Without self-attenuation a segment is a difference of the integral
+// functions (eqs. (15), (17)) wherever the ramp is steep: it agrees with the
+// sum over the ramp's pieces to rounding, scaled by how much of S and G the
+// difference cancels, for every model, both colour kinds and values far
+// outside the transfer function's range; flatter ramps take the pieces.
+TEST(Preintegrated, IntegralFunctionsMatchTheRampPieces) {
+    TransferFunction emissive = spiky_tf();
+    emissive.associated = true;
+    // CT units: breakpoints far from 0, values over thousands
+    const TransferFunction ct = TransferFunction::preset("ct-bone", {-1024.0, 3071.0});
+    long steep = 0, flat = 0;
+    for (const auto& tf : {spiky_tf(), emissive, ct}) {
+        const Classifier c(tf, 1.0);
+        const IntegralFunctions& f = c.integrals();
+        ASSERT_FALSE(f.empty());
+        const double k0 = f.knots.front(), range = f.knots.back() - k0;
+        double smax = 0, gmax = 0;
+        for (double v : f.knots)
+            for (double e : {-1e-9, 0.0, 1e-9}) {
+                smax = std::max(smax, c.sigma(v + e * range));
+                for (double g : c.source(v + e * range)) gmax = std::max(gmax, std::abs(g));
+            }
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<double> v(k0 - 0.5 * range, k0 + 1.5 * range), d(0.05, 4.0),
+            u(0.0, 1.0);
+        for (int i = 0; i < 4000; ++i) {
+            const double vf = i % 9 == 0 ? f.knots[static_cast<std::size_t>(i) % f.knots.size()] : v(rng);
+            const double scale = std::abs(vf - k0) + 1e-3 * range;
+            // far apart, close (1e−6 of the range), just past the threshold, within it
+            const double step = i % 4 == 0   ? v(rng) - vf
+                                : i % 4 == 1 ? 1e-6 * range * (u(rng) - 0.5)
+                                : i % 4 == 2 ? 2.0 * preint::kFlatRamp * scale * (1.0 + u(rng))
+                                             : 0.4 * preint::kFlatRamp * scale * u(rng);
+            const double vb = vf + step, delta = d(rng);
+            const bool is_steep = preint::steep_ramp(f, vf, vb);
+            (is_steep ? steep : flat) += 1;
+            auto pieces = [&]<Model M>() {
+                RampIntegral<M> acc(delta, false);
+                for_each_ramp_piece(c, vf, vb, [&](const RampPiece& p) { acc.add(p); });
+                return acc.result();
+            };
+            // the difference's rounding: a few ulp of S, G at the ends, over |v_b − v_f|
+            const double cancel = 64 * std::numeric_limits<double>::epsilon() * delta *
+                                  (std::abs(vf - k0) + std::abs(vb - k0) + range) /
+                                  std::max(std::abs(vb - vf), 1e-300);
+            auto check = [&]<Model M>() {
+                const Segment got = preintegrate_scalar<M>(c, vf, vb, delta, false),
+                              want = pieces.template operator()<M>();
+                const double tol_t = std::min(1e-7 * delta * smax, cancel * smax) + 1e-15;
+                EXPECT_NEAR(got.transmittance, want.transmittance, tol_t)
+                    << vf << " → " << vb << " δ " << delta;
+                for (int k = 0; k < 3; ++k)
+                    EXPECT_NEAR(
+                        got.radiance[k], want.radiance[k],
+                        std::min(1e-7 * delta * gmax, cancel * gmax) + 1e-15 * std::abs(want.radiance[k]))
+                        << vf << " → " << vb << " δ " << delta;
+            };
+            check.template operator()<Model::emission_absorption>();
+            check.template operator()<Model::absorption>();
+            check.template operator()<Model::emission>();
+        }
+    }
+    EXPECT_GT(steep, 2 * flat);
+    EXPECT_GT(flat, 1000);
 }
 
 TEST(Preintegrated, ConstantSegmentEqualsAlphaQuadrature) {

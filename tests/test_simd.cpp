@@ -281,7 +281,7 @@ std::vector<std::pair<std::string, Classifier>> ramp_tfs() {
 
 TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
     std::mt19937 rng(7);
-    long taken = 0, left = 0;
+    long taken = 0, left = 0, integrals = 0;
     for (const auto& [name, c] : ramp_tfs()) {
         const auto& knots = c.breakpoints();
         const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
@@ -291,7 +291,9 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
         src.color = &fc;
         src.breaks = &knots;
         src.associated = c.associated();
-        // ends: random, control values exactly, repeats (constant ramps), NaN
+        src.integrals = &c.integrals();
+        // ends: random, control values exactly, repeats (constant ramps),
+        // nearly repeats (about preint::kFlatRamp apart), NaN
         const double lo = knots.front() - 20, hi = knots.back() + 20;
         std::uniform_real_distribution<double> any(lo, hi);
         std::uniform_int_distribution<std::size_t> pick(0, knots.size() - 1);
@@ -299,7 +301,13 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
             alignas(64) double ends[simd::kBatch + 1] = {};
             for (int j = 0; j < simd::kBatch; ++j) {
                 const int kind = static_cast<int>(rng() % 8);
-                ends[j] = kind == 0 ? knots[pick(rng)] : kind == 1 && j > 0 ? ends[j - 1] : any(rng);
+                const double near = j > 0 ? ends[j - 1] + (std::abs(ends[j - 1] - knots.front()) + 1.0) *
+                                                              preint::kFlatRamp * (kind == 2 ? 2.5 : 0.5)
+                                          : 0.0;
+                ends[j] = kind == 0                           ? knots[pick(rng)]
+                          : kind == 1 && j > 0                ? ends[j - 1]
+                          : (kind == 2 || kind == 3) && j > 0 ? near
+                                                              : any(rng);
             }
             if (trial == 5) ends[3] = std::numeric_limits<double>::quiet_NaN();
             const int count = 2 + trial % (simd::kBatch - 1);
@@ -321,6 +329,8 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
                                     continue;
                                 }
                                 ++taken;
+                                if (!full && preint::steep_ramp(c.integrals(), ends[l], ends[l + 1]))
+                                    ++integrals;
                                 Segment want{};
                                 switch (model) {
                                     case Model::absorption:
@@ -349,8 +359,10 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
             simd::force_target(0);
         }
     }
-    // nearly every segment is the vector code's
+    // nearly every segment is the vector code's; without self-attenuation
+    // most take the integral functions
     EXPECT_GT(taken, 20 * left);
+    EXPECT_GT(integrals, taken / 4);
 }
 
 TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {

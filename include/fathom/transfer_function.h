@@ -108,6 +108,61 @@ struct TransferFunction {
     [[nodiscard]] std::string to_json() const;
 };
 
+/// The integral functions of σ and of the source g over the scalar (Engel,
+/// Kraus and Ertl's integral functions, docs/theory.md eqs. (15), (17)):
+/// S(v) = ∫_{K₀}^v σ and G(v) = ∫_{K₀}^v g, K₀ the first breakpoint. Between
+/// consecutive breakpoints σ and c are linear, so S is quadratic and G cubic
+/// there. Row p serves the values with p breakpoints ≤ v: rows 0 and m (m
+/// breakpoints) are the constant ends. Pre-integration without
+/// self-attenuation takes a segment's integrals as differences of these.
+struct IntegralFunctions {
+    /// The columns, one value per row: the piece's start K, 1/width (0 at
+    /// the ends), S and G at K, σ at K, half of σ's rise over the piece, and
+    /// per channel g = A + B·w + C·w² (w ∈ [0, 1] over the piece) as A, B/2
+    /// and C/3.
+    enum Column : std::size_t {
+        kStart,
+        kInvWidth,
+        kS,
+        kSigma,
+        kHalfRise,
+        kG,
+        kA = kG + 3,
+        kB = kA + 3,
+        kC = kB + 3,
+        kColumns = kC + 3
+    };
+    std::vector<double> knots;  // the breakpoints
+    /// Each column holds knots.size() + 1 rows, padded to a multiple of 8
+    /// with the last row's values (for SIMD lane permutations).
+    std::array<std::vector<double>, kColumns> col;
+
+    [[nodiscard]] bool empty() const { return knots.empty(); }
+    [[nodiscard]] std::size_t rows() const { return knots.size() + 1; }
+    /// The row of v (PiecewiseLinear::piece over the breakpoints).
+    [[nodiscard]] std::size_t row(double v) const {
+        if (knots.size() <= 8) {
+            std::size_t p = 0;
+            while (p < knots.size() && knots[p] <= v) ++p;
+            return p;
+        }
+        return static_cast<std::size_t>(std::upper_bound(knots.begin(), knots.end(), v) - knots.begin());
+    }
+    /// S(v) on row p.
+    [[nodiscard]] double S(std::size_t p, double v) const {
+        const double x = v - col[kStart][p], w = x * col[kInvWidth][p];
+        return col[kS][p] + x * (col[kSigma][p] + col[kHalfRise][p] * w);
+    }
+    /// G(v) on row p.
+    [[nodiscard]] Rgb G(std::size_t p, double v) const {
+        const double x = v - col[kStart][p], w = x * col[kInvWidth][p];
+        Rgb g;
+        for (std::size_t k = 0; k < 3; ++k)
+            g[k] = col[kG + k][p] + x * (col[kA + k][p] + w * (col[kB + k][p] + w * col[kC + k][p]));
+        return g;
+    }
+};
+
 /// The transfer function ready for evaluation: σ(v) and c(v) (or q(v)).
 class Classifier {
 public:
@@ -143,13 +198,19 @@ public:
     /// Every control value of σ and of the color, sorted, without duplicates:
     /// the v where σ(v) or g(v) may bend or jump.
     [[nodiscard]] const std::vector<double>& breakpoints() const { return breaks_; }
+    /// S(v) = ∫σ and G(v) = ∫g over the breakpoints' pieces (empty without
+    /// σ or color points).
+    [[nodiscard]] const IntegralFunctions& integrals() const { return integrals_; }
 
 private:
+    void build_integrals();
+
     PiecewiseLinear<1> sigma_;
     PiecewiseLinear<3> color_;
     PiecewiseLinear<1> grad_opacity_;
     bool associated_ = false;
     std::vector<double> breaks_;
+    IntegralFunctions integrals_;
 };
 
 /// Opacity a per unit distance u → extinction (eq. (19)).

@@ -75,6 +75,10 @@ struct BatchSource {
     /// values (Classifier::breakpoints) and whether color is an emission q.
     const std::vector<double>* breaks = nullptr;
     bool associated = false;
+    /// Optional (nullptr: the ramp's pieces): the transfer function's
+    /// integral functions (Classifier::integrals), for the segments without
+    /// self-attenuation.
+    const IntegralFunctions* integrals = nullptr;
     /// With a rule: classify_batch also turns each sample into its segment
     /// (BatchOut::t, radiance) under `model` with δ = RayGrid::delta, as the
     /// scalar rule does (the same bits). For unshaded scalar media only.

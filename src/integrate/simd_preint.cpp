@@ -180,29 +180,24 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
     return o;
 }
 
-void PreintegrateBatch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
-                       int count, std::uint32_t skip, SegmentBatch& out) {
-    const D d;
+/// Segments vf → vb per lane, where `ok`: the transmittance T, the radiance
+/// E, and the lanes left to the scalar code (those not `ok` among them).
+struct Segments {
+    V T, E[3];
+    M scalar;
+};
+
+/// The lanes' segments from their ramp pieces (preintegrate_scalar's
+/// RampIntegral over for_each_ramp_piece).
+HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, bool full, V vdelta, V vf, V vb,
+                                   M ok) {
     const DI di;
-    const std::size_t N = hn::Lanes(d);
     const std::vector<double>& breaks = *src.breaks;
     const auto nb = static_cast<std::int64_t>(breaks.size());
     const bool absorb = model != Model::emission, source = model != Model::absorption;
-    const V zero = hn::Zero(d), one = hn::Set(d, 1.0), vdelta = hn::Set(d, delta);
-    const auto segments = static_cast<std::size_t>(std::max(count - 1, 0));
-    out.scalar = ~std::uint32_t{0};
-    if (src.sigma->knots.empty() || src.color->knots.empty()) return;  // nothing to select from
-    for (std::size_t b = 0; b < segments; b += N) {
-        HWY_ALIGN double wanted[hn::MaxLanes(d)];
-        bool any = false;
-        for (std::size_t l = 0; l < N; ++l) {
-            const bool w = b + l < segments && ((skip >> (b + l)) & 1u) == 0;
-            wanted[l] = w ? 1.0 : 0.0;
-            any = any || w;
-        }
-        if (!any) continue;
-        const V vf = hn::LoadU(d, ends + b), vb = hn::LoadU(d, ends + b + 1);
-        const M ok = hn::And(hn::Eq(hn::Load(d, wanted), one), hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
+    const std::size_t N = hn::Lanes(d);
+    {
         // the control values strictly between the ends, in the order the ramp meets them
         const M ascending = hn::Lt(vf, vb);
         const V lo = hn::IfThenElse(ascending, vf, vb), hi = hn::IfThenElse(ascending, vb, vf);
@@ -265,10 +260,105 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
             T = hn::IfThenElse(active, t, T);
             l0 = l1;
         }
-        hn::Store(T, d, out.transmittance + b);
-        for (int k = 0; k < 3; ++k) hn::Store(E[k], d, out.radiance[k] + b);
+        return {T, {E[0], E[1], E[2]}, scalar};
+    }
+}
+
+/// One column of the integral functions at rows p (a lane permutation of
+/// the padded column where the rows fit in a vector).
+HWY_INLINE V Column(D d, const IntegralFunctions& f, std::size_t c, VI p) {
+    if (f.rows() <= hn::Lanes(d))
+        return hn::TableLookupLanes(hn::LoadU(d, f.col[c].data()), hn::IndicesFromVec(d, p));
+    return hn::GatherIndex(d, f.col[c].data(), p);
+}
+
+void PreintegrateBatch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
+                       int count, std::uint32_t skip, SegmentBatch& out) {
+    const D d;
+    const std::size_t N = hn::Lanes(d);
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0), vdelta = hn::Set(d, delta);
+    const auto segments = static_cast<std::size_t>(std::max(count - 1, 0));
+    out.scalar = ~std::uint32_t{0};
+    if (src.sigma->knots.empty() || src.color->knots.empty()) return;  // nothing to select from
+    // Without self-attenuation: S and G at every end once (integral_segment).
+    const IntegralFunctions* f =
+        !full && src.integrals != nullptr && !src.integrals->empty() ? src.integrals : nullptr;
+    HWY_ALIGN double S[kBatch + hn::MaxLanes(d)], G[3][kBatch + hn::MaxLanes(d)];
+    const bool absorb = model != Model::emission, source = model != Model::absorption;
+    if (f != nullptr) {
+        using F = IntegralFunctions;
+        const auto n = static_cast<std::size_t>(count);
+        std::size_t e = 0;
+        for (; e < n; e += N) {
+            const V v = hn::LoadU(d, ends + e);
+            const VI p = Count<false>(d, f->knots, v);
+            const V x = hn::Sub(v, Column(d, *f, F::kStart, p)),
+                    w = hn::Mul(x, Column(d, *f, F::kInvWidth, p));
+            if (absorb)
+                hn::Store(hn::Add(Column(d, *f, F::kS, p),
+                                  hn::Mul(x, hn::Add(Column(d, *f, F::kSigma, p),
+                                                     hn::Mul(Column(d, *f, F::kHalfRise, p), w)))),
+                          d, S + e);
+            if (source)
+                for (std::size_t k = 0; k < 3; ++k) {
+                    const V c = hn::Add(Column(d, *f, F::kB + k, p), hn::Mul(w, Column(d, *f, F::kC + k, p)));
+                    const V a = hn::Add(Column(d, *f, F::kA + k, p), hn::Mul(w, c));
+                    hn::Store(hn::Add(Column(d, *f, F::kG + k, p), hn::Mul(x, a)), d, G[k] + e);
+                }
+        }
+        // the lanes past the last end: read by the last vector of segments, never used
+        hn::Store(zero, d, S + e);
+        for (auto& g : G) hn::Store(zero, d, g + e);
+    }
+    const V k0 = f != nullptr ? hn::Set(d, f->knots.front()) : zero, flat = hn::Set(d, preint::kFlatRamp);
+    for (std::size_t b = 0; b < segments; b += N) {
+        HWY_ALIGN double wanted[hn::MaxLanes(d)];
+        bool any = false;
+        for (std::size_t l = 0; l < N; ++l) {
+            const bool w = b + l < segments && ((skip >> (b + l)) & 1u) == 0;
+            wanted[l] = w ? 1.0 : 0.0;
+            any = any || w;
+        }
+        if (!any) continue;
+        const V vf = hn::LoadU(d, ends + b), vb = hn::LoadU(d, ends + b + 1);
+        const M ok = hn::And(hn::Eq(hn::Load(d, wanted), one), hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
+        Segments r;
+        M pieces = ok;  // the lanes that take the ramp's pieces
+        if (f != nullptr) {
+            // steep_ramp and integral_segment per lane
+            const V dv = hn::Sub(vb, vf);
+            const M steep = hn::And(
+                ok, hn::Gt(hn::Abs(dv),
+                           hn::Mul(flat, hn::Add(hn::Abs(hn::Sub(vf, k0)), hn::Abs(hn::Sub(vb, k0))))));
+            pieces = hn::AndNot(steep, ok);
+            const V ratio = hn::Div(vdelta, dv);
+            r.T = one;
+            r.scalar = hn::Not(ok);
+            if (absorb) {
+                V tau = hn::Mul(hn::Sub(hn::LoadU(d, S + b + 1), hn::LoadU(d, S + b)), ratio);
+                tau = hn::IfThenElse(hn::Gt(tau, zero), tau, zero);
+                r.scalar = hn::Or(r.scalar, hn::AndNot(InRange(d, tau), steep));
+                r.T = ExpNeg(d, tau);
+            }
+            for (std::size_t k = 0; k < 3; ++k)
+                r.E[k] =
+                    source
+                        ? hn::Add(hn::Mul(hn::Sub(hn::LoadU(d, G[k] + b + 1), hn::LoadU(d, G[k] + b)), ratio),
+                                  zero)
+                        : zero;
+            if (!hn::AllFalse(d, pieces)) {
+                const Segments p = RampSegments(d, src, model, full, vdelta, vf, vb, pieces);
+                r.T = hn::IfThenElse(pieces, p.T, r.T);
+                for (std::size_t k = 0; k < 3; ++k) r.E[k] = hn::IfThenElse(pieces, p.E[k], r.E[k]);
+                r.scalar = hn::Or(hn::AndNot(pieces, r.scalar), hn::And(pieces, p.scalar));
+            }
+        } else {
+            r = RampSegments(d, src, model, full, vdelta, vf, vb, ok);
+        }
+        hn::Store(r.T, d, out.transmittance + b);
+        for (int k = 0; k < 3; ++k) hn::Store(r.E[k], d, out.radiance[k] + b);
         std::uint8_t bits[8] = {};
-        hn::StoreMaskBits(d, hn::Not(scalar), bits);
+        hn::StoreMaskBits(d, hn::Not(r.scalar), bits);
         out.scalar &= ~(static_cast<std::uint32_t>(bits[0]) << b);
     }
 }

@@ -94,6 +94,7 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch = {volume.bytes(),   volume.dtype(), volume.dims()[0], volume.dims()[1],
                  volume.dims()[2], &flat_sigma,    &flat_color,      zero_below(tf, s.model)};
         batch.breaks = &tf.breakpoints();
+        batch.integrals = &tf.integrals();
         batch.associated = tf.associated();
         const bool point_sampled = s.integrator == IntegratorKind::alpha ||
                                    s.integrator == IntegratorKind::riemann;  // classify_batch's users

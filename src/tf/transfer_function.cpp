@@ -90,6 +90,48 @@ Classifier::Classifier(const TransferFunction& tf, double default_unit_distance)
     for (const auto& p : tf.color_points) breaks_.push_back(p.first);
     std::sort(breaks_.begin(), breaks_.end());
     breaks_.erase(std::unique(breaks_.begin(), breaks_.end()), breaks_.end());
+    if (!sigma_.empty() && !color_.empty()) build_integrals();
+}
+
+void Classifier::build_integrals() {
+    using F = IntegralFunctions;
+    F& f = integrals_;
+    f.knots = breaks_;
+    const std::size_t m = breaks_.size();
+    for (auto& c : f.col) c.assign(m + 1, 0.0);
+    // Row p's σ and c: linear from (v0, σ0, c0) to (v1, σ1, c1), on the
+    // pieces chosen at vm (one-sided limits at jumps).
+    auto set_row = [&](std::size_t p, double v0, double v1, double vm, double inv_width) {
+        const std::size_t ps = sigma_.piece(vm), pc = color_.piece(vm);
+        const double s0 = sigma_.on_piece(ps, v0)[0], s1 = sigma_.on_piece(ps, v1)[0];
+        const Rgb c0 = color_.on_piece(pc, v0), c1 = color_.on_piece(pc, v1);
+        f.col[F::kStart][p] = v0;
+        f.col[F::kInvWidth][p] = inv_width;
+        f.col[F::kSigma][p] = s0;
+        f.col[F::kHalfRise][p] = inv_width == 0.0 ? 0.0 : 0.5 * (s1 - s0);
+        for (std::size_t k = 0; k < 3; ++k) {
+            // g over the piece as A + B·w + C·w² (preintegrated.h's sources)
+            const double dc = inv_width == 0.0 ? 0.0 : c1[k] - c0[k];
+            const double ds = inv_width == 0.0 ? 0.0 : s1 - s0;
+            const double a = associated_ ? c0[k] : s0 * c0[k];
+            const double b = associated_ ? dc : s0 * dc + c0[k] * ds;
+            const double c = associated_ ? 0.0 : ds * dc;
+            f.col[F::kA + k][p] = a;
+            f.col[F::kB + k][p] = 0.5 * b;
+            f.col[F::kC + k][p] = c / 3.0;
+        }
+    };
+    set_row(0, breaks_.front(), breaks_.front(), -INFINITY, 0.0);  // before the first breakpoint
+    for (std::size_t p = 1; p < m; ++p) {
+        const double v0 = breaks_[p - 1], v1 = breaks_[p];
+        set_row(p, v0, v1, 0.5 * (v0 + v1), 1.0 / (v1 - v0));
+        // the integrals at the next row's start: this row's at v1
+        f.col[F::kS][p + 1] = f.S(p, v1);
+        const Rgb g = f.G(p, v1);
+        for (std::size_t k = 0; k < 3; ++k) f.col[F::kG + k][p + 1] = g[k];
+    }
+    set_row(m, breaks_.back(), breaks_.back(), INFINITY, 0.0);  // after the last
+    for (auto& c : f.col) c.resize((m + 1 + 7) / 8 * 8, c[m]);
 }
 
 namespace {
