@@ -12,8 +12,11 @@
 // integrated by Gauss–Legendre on sub-pieces of optical depth ≤ 1, which is
 // accurate to about 1e−10 of the segment's radiance for every segment length
 // (and exact where the piece is constant: then it equals the alpha
-// quadrature). Pre-classified grids take σ and c linear along the segment
-// between their end samples: one piece.
+// quadrature). Without self-attenuation the sums over the pieces are
+// differences of the integral functions S and G (Classifier::integrals),
+// which preint::integral_segment takes wherever the ramp is not too flat
+// for the difference. Pre-classified grids take σ and c linear along the
+// segment between their end samples: one piece.
 #pragma once
 
 #include <algorithm>

@@ -3,7 +3,9 @@
 // the operations of preintegrate_scalar (integrate/preintegrated.h) in the
 // same order: the ramp cut at the transfer function's control values, each
 // piece's closed forms and Gauss–Legendre sums with exp_neg, composed as
-// RampIntegral. So the results are the scalar code's bits; tests check every
+// RampIntegral; without self-attenuation, where the ramp is steep, the
+// integral functions' differences (preint::integral_segment), S and G taken
+// once per end. So the results are the scalar code's bits; tests check every
 // target against it. Lanes the vector code does not take (a piece deeper
 // than 40 that is not constant, a scalar that is not finite, an exponent
 // beyond exp_neg's reduction) are flagged and left to the scalar code.
@@ -29,8 +31,9 @@ struct SegmentBatch {
 /// segment ends j0 … j0 + count − 1, camera side first; `ends` holds kBatch
 /// + 1 values, the last read but not used) of length `delta` under `model`
 /// (emission–absorption, absorption or emission), with self-attenuation
-/// when `full`. src.sigma, src.color, src.breaks and src.associated describe
-/// the transfer function. Segments with their bit set in `skip` are not
+/// when `full`. src.sigma, src.color, src.breaks, src.associated and
+/// src.integrals describe the transfer function (without src.integrals every
+/// segment takes the ramp's pieces). Segments with their bit set in `skip` are not
 /// computed (flagged as scalar).
 void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
                         int count, std::uint32_t skip, SegmentBatch& out);
