@@ -309,6 +309,11 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
                           : (kind == 2 || kind == 3) && j > 0 ? near
                                                               : any(rng);
             }
+            if (trial % 4 == 1) {  // every end between the same two control values: one piece per ramp
+                const std::size_t k = pick(rng) % (knots.size() - 1);
+                std::uniform_real_distribution<double> inside(knots[k], knots[k + 1]);
+                for (int j = 0; j < simd::kBatch; ++j) ends[j] = j % 5 == 4 ? ends[j - 1] : inside(rng);
+            }
             if (trial == 5) ends[3] = std::numeric_limits<double>::quiet_NaN();
             const int count = 2 + trial % (simd::kBatch - 1);
             const std::uint32_t skip = trial % 3 == 0 ? 0x5u : 0u;
