@@ -37,8 +37,9 @@ class CMakeBuild(build_ext):
         target = pathlib.Path(self.get_ext_fullpath(ext.name))
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(built[-1], target)
-        # fathom's OpenVDB module, loaded from beside the extension for .vdb files
-        shutil.copy2(build / "python" / "fathom" / "fathom-vdb.so", target.parent / "fathom-vdb.so")
+        # fathom's OpenVDB and DICOM modules, loaded from beside the extension
+        for module in ("fathom-vdb.so", "fathom-dicom.so"):
+            shutil.copy2(build / "python" / "fathom" / module, target.parent / module)
 
 
 setup(

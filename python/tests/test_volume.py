@@ -122,3 +122,32 @@ def test_placement_properties():
         v.spacing = (1, 0, 1)
     with pytest.raises(fathom.Error, match="singular"):
         v.axes = np.zeros((3, 3))
+
+
+def test_dicom_through_the_module_loads_gdcm_on_the_first_read(tmp_path):
+    """DICOM goes through fathom-dicom.so beside the extension: GDCM is mapped
+    only once a DICOM file is read, and its errors arrive as fathom.Error."""
+    import subprocess
+    import sys
+    import zipfile
+
+    from conftest import SHARED_DATA
+    archive = SHARED_DATA / "sim_and_small_vtkdata" / "dicom_stack_cptac" / "data.zip"
+    if not archive.exists():
+        pytest.skip(f"{archive} not present (../shared/data beside the clone)")
+    zipfile.ZipFile(archive).extractall(tmp_path)
+    (tmp_path / "empty").mkdir()
+    code = (
+        "import sys, fathom\n"
+        "gdcm = lambda: 'libgdcm' in open('/proc/self/maps').read()\n"
+        "before = gdcm()\n"
+        "try:\n"
+        "    fathom.load_volume(sys.argv[2])\n"
+        "except fathom.Error as e:\n"
+        "    print('error', e)\n"
+        "v = fathom.load_volume(sys.argv[1])\n"
+        "print(before, gdcm(), v.array.shape)\n")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "data"), str(tmp_path / "empty")],
+                         check=True, capture_output=True, text=True).stdout.splitlines()
+    assert out[0] == f"error {tmp_path / 'empty'}: no DICOM files in folder (it is empty)"
+    assert out[1] == "False True (3, 512, 512)"

@@ -45,7 +45,6 @@
 //
 // Listing uses the grid statistics OpenVDB writes beside each grid
 // (file_voxel_count, file_bbox_min, file_bbox_max) and reads the grid itself
-#include <dlfcn.h>
 #include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -81,46 +80,13 @@ namespace {
 
 using namespace vdb;
 
-/// Where fathom-vdb.so is: $FATHOM_VDB_MODULE when set (then only there);
-/// else beside the binary that holds this code (the fathom executable, the
-/// Python extension), in ../lib/fathom from it (an installed executable),
-/// where this build put it (tests and benchmarks of the build tree), where
-/// `cmake --install` puts it.
-std::filesystem::path module_path(const std::string& subject) {
-    if (const char* env = std::getenv("FATHOM_VDB_MODULE"); env != nullptr && env[0] != '\0') {
-        if (!std::filesystem::exists(env))
-            throw Error(subject, std::string("cannot read VDB files: fathom's OpenVDB module ") + env +
-                                     " (FATHOM_VDB_MODULE) does not exist");
-        return env;
-    }
-    std::vector<std::filesystem::path> dirs;
-    Dl_info info{};
-    if (::dladdr(reinterpret_cast<void*>(&module_path), &info) != 0 && info.dli_fname != nullptr &&
-        info.dli_fname[0] == '/')
-        dirs.push_back(std::filesystem::path(info.dli_fname).parent_path());
-    std::error_code ec;
-    if (const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec); !ec)
-        dirs.push_back(exe.parent_path());
-    std::vector<std::filesystem::path> candidates;
-    for (const auto& d : dirs) {
-        candidates.push_back(d / kModuleName);
-        candidates.push_back(d / ".." / "lib" / "fathom" / kModuleName);
-    }
-    for (const char* p : {FATHOM_VDB_MODULE_BUILD, FATHOM_VDB_MODULE_INSTALL})
-        if (p[0] != '\0') candidates.emplace_back(p);
-    std::string looked;
-    for (const auto& c : candidates) {
-        if (std::filesystem::is_regular_file(c, ec)) return c;
-        looked += (looked.empty() ? "" : ", ") + c.string();
-    }
-    throw Error(subject, std::string("cannot read VDB files: fathom's OpenVDB module ") + kModuleName +
-                             " is not installed (looked for " + looked + ")");
-}
-
 /// The module's entry point, the module loaded on first use.
 ChildFn* module_entry(const std::string& subject) {
     static ChildFn* const entry = [&] {
-        const std::string path = module_path(subject).string();
+        const std::string path = io::find_module(kModuleName, "FATHOM_VDB_MODULE",
+                                                 {FATHOM_VDB_MODULE_BUILD, FATHOM_VDB_MODULE_INSTALL},
+                                                 "read VDB files", "OpenVDB module", subject)
+                                     .string();
         void* handle = io::load_library(path, "fathom", subject);
         return reinterpret_cast<ChildFn*>(
             io::library_function(handle, kChildFunction, path, "fathom", subject));

@@ -921,3 +921,37 @@ TEST(DicomErrors, ExplicitVrWithoutMetaGroupIsRefused) {
 }
 
 }  // namespace
+
+// GDCM runs in fathom's DICOM module (fathom-dicom.so), loaded on the first
+// DICOM read: one clear error, exit status 1, when it is missing or not a
+// library; processes that read no DICOM never load it.
+TEST(DicomErrors, MissingOrBrokenModule) {
+    const TempDir d;
+    for (int z = 0; z < 2; ++z) {
+        SliceSpec s;
+        s.position = Vec3{0, 0, static_cast<double>(z)};
+        s.values.assign(12, 100 + z);
+        write_slice(d / ("s" + std::to_string(z) + ".dcm"), s);
+    }
+    { std::ofstream(d / "fathom-dicom.so") << "not a shared library"; }
+    auto run = [&](const std::string& args, const std::string& module, std::string& out) {
+        const auto r = fathom::test::run_cli(args, d, "FATHOM_DICOM_MODULE='" + module + "'");
+        out = r.err + r.out;
+        return r.status;
+    };
+    std::string out;
+    const std::string info = "info " + (d / "s0.dcm").string();
+    EXPECT_EQ(run(info, (d / "missing" / "fathom-dicom.so").string(), out), 1);
+    EXPECT_NE(out.find("cannot read DICOM files: fathom's DICOM module"), std::string::npos) << out;
+    EXPECT_NE(out.find("does not exist"), std::string::npos) << out;
+    EXPECT_NE(out.find((d / "s0.dcm").string()), std::string::npos) << out;  // names the file
+    EXPECT_EQ(run(info, (d / "fathom-dicom.so").string(), out), 1);
+    EXPECT_NE(out.find("cannot load fathom's " + (d / "fathom-dicom.so").string()), std::string::npos) << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;  // one line
+    // a folder too, and unset: found beside the executable
+    EXPECT_EQ(run("info " + d.path().string(), (d / "fathom-dicom.so").string(), out), 1) << out;
+    EXPECT_EQ(run("info " + d.path().string(), "", out), 0) << out;
+    EXPECT_NE(out.find("4 x 3 x 2"), std::string::npos) << out;
+    // what reads no DICOM does not need the module
+    EXPECT_EQ(run("--version", (d / "missing" / "fathom-dicom.so").string(), out), 0) << out;
+}
