@@ -197,71 +197,68 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
     const bool absorb = model != Model::emission, source = model != Model::absorption;
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
     const std::size_t N = hn::Lanes(d);
-    {
-        // the control values strictly between the ends, in the order the ramp meets them
-        const M ascending = hn::Lt(vf, vb);
-        const V lo = hn::IfThenElse(ascending, vf, vb), hi = hn::IfThenElse(ascending, vb, vf);
-        const VI below_hi = Count<true>(d, breaks, hi), upto_lo = Count<false>(d, breaks, lo);
-        const VI cuts =
-            hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))), hn::Sub(below_hi, upto_lo));
-        // the first cut: the first knot > vf (ascending) or the last < vf
-        const VI first =
-            hn::IfThenElse(hn::RebindMask(di, ascending), upto_lo, hn::Sub(below_hi, hn::Set(di, 1)));
-        HWY_ALIGN std::int64_t cut_count[hn::MaxLanes(d)];
-        hn::Store(cuts, di, cut_count);
-        const std::int64_t most = *std::max_element(cut_count, cut_count + N);
-        const V span = hn::Sub(vb, vf);
-        V E[3] = {zero, zero, zero};
-        V depth = zero, T = one, l0 = zero;
-        M scalar = hn::Not(ok);
-        for (std::int64_t m = 0; m <= most; ++m) {
-            const M active = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), cuts)));
-            const M cut = hn::RebindMask(d, hn::Lt(hn::Set(di, m), cuts));
-            V l1 = one;
-            if (m < most) {
-                const VI step = hn::Set(di, m);
-                VI at =
-                    hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, step), hn::Sub(first, step));
-                at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
-                const V knot = hn::GatherIndex(d, breaks.data(), at);
-                l1 = hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
-            }
-            // for_each_ramp_piece's piece(l0, l1)
-            const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
-            const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
-            const Piece ps(d, *src.sigma, vm), pc(d, *src.color, vm);
-            V s0 = ps.at(0, ps.weight(v0)), s1 = ps.at(0, ps.weight(v1));
-            const V w0 = pc.weight(v0), w1 = pc.weight(v1);
-            V a[3], bq[3], cq[3];
-            for (int k = 0; k < 3; ++k) {
-                const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
-                if (!source) {
-                    a[k] = bq[k] = cq[k] = zero;
-                } else if (src.associated) {  // emission_source
-                    a[k] = c0;
-                    bq[k] = hn::Sub(c1, c0);
-                    cq[k] = zero;
-                } else {  // particle_source
-                    a[k] = hn::Mul(s0, c0);
-                    bq[k] = hn::Add(hn::Mul(s0, hn::Sub(c1, c0)), hn::Mul(c0, hn::Sub(s1, s0)));
-                    cq[k] = hn::Mul(hn::Sub(s1, s0), hn::Sub(c1, c0));
-                }
-            }
-            if (!absorb) s0 = s1 = zero;
-            // RampIntegral::add
-            const PieceOut r = IntegratePiece(d, hn::Mul(hn::Sub(l1, l0), vdelta), s0, s1, a, bq, cq, full);
-            for (int k = 0; k < 3; ++k)
-                E[k] = hn::IfThenElse(active, hn::Add(E[k], hn::Mul(full ? T : one, r.radiance[k])), E[k]);
-            depth = hn::IfThenElse(active, hn::Add(depth, r.depth), depth);
-            scalar = hn::Or(scalar, hn::And(active, hn::Or(r.scalar, hn::Not(InRange(d, depth)))));
-            // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
-            const V t = hn::AllTrue(d, hn::Lt(depth, hn::Set(d, kNoReduction))) ? ExpNegSmall(d, depth)
-                                                                                : ExpNeg(d, depth);
-            T = hn::IfThenElse(active, t, T);
-            l0 = l1;
+    // the control values strictly between the ends, in the order the ramp meets them
+    const M ascending = hn::Lt(vf, vb);
+    const V lo = hn::IfThenElse(ascending, vf, vb), hi = hn::IfThenElse(ascending, vb, vf);
+    const VI below_hi = Count<true>(d, breaks, hi), upto_lo = Count<false>(d, breaks, lo);
+    const VI cuts =
+        hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))), hn::Sub(below_hi, upto_lo));
+    // the first cut: the first knot > vf (ascending) or the last < vf
+    const VI first =
+        hn::IfThenElse(hn::RebindMask(di, ascending), upto_lo, hn::Sub(below_hi, hn::Set(di, 1)));
+    HWY_ALIGN std::int64_t cut_count[hn::MaxLanes(d)];
+    hn::Store(cuts, di, cut_count);
+    const std::int64_t most = *std::max_element(cut_count, cut_count + N);
+    const V span = hn::Sub(vb, vf);
+    V E[3] = {zero, zero, zero};
+    V depth = zero, T = one, l0 = zero;
+    M scalar = hn::Not(ok);
+    for (std::int64_t m = 0; m <= most; ++m) {
+        const M active = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), cuts)));
+        const M cut = hn::RebindMask(d, hn::Lt(hn::Set(di, m), cuts));
+        V l1 = one;
+        if (m < most) {
+            const VI step = hn::Set(di, m);
+            VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, step), hn::Sub(first, step));
+            at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
+            const V knot = hn::GatherIndex(d, breaks.data(), at);
+            l1 = hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
         }
-        return {T, {E[0], E[1], E[2]}, scalar};
+        // for_each_ramp_piece's piece(l0, l1)
+        const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
+        const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
+        const Piece ps(d, *src.sigma, vm), pc(d, *src.color, vm);
+        V s0 = ps.at(0, ps.weight(v0)), s1 = ps.at(0, ps.weight(v1));
+        const V w0 = pc.weight(v0), w1 = pc.weight(v1);
+        V a[3], bq[3], cq[3];
+        for (int k = 0; k < 3; ++k) {
+            const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
+            if (!source) {
+                a[k] = bq[k] = cq[k] = zero;
+            } else if (src.associated) {  // emission_source
+                a[k] = c0;
+                bq[k] = hn::Sub(c1, c0);
+                cq[k] = zero;
+            } else {  // particle_source
+                a[k] = hn::Mul(s0, c0);
+                bq[k] = hn::Add(hn::Mul(s0, hn::Sub(c1, c0)), hn::Mul(c0, hn::Sub(s1, s0)));
+                cq[k] = hn::Mul(hn::Sub(s1, s0), hn::Sub(c1, c0));
+            }
+        }
+        if (!absorb) s0 = s1 = zero;
+        // RampIntegral::add
+        const PieceOut r = IntegratePiece(d, hn::Mul(hn::Sub(l1, l0), vdelta), s0, s1, a, bq, cq, full);
+        for (int k = 0; k < 3; ++k)
+            E[k] = hn::IfThenElse(active, hn::Add(E[k], hn::Mul(full ? T : one, r.radiance[k])), E[k]);
+        depth = hn::IfThenElse(active, hn::Add(depth, r.depth), depth);
+        scalar = hn::Or(scalar, hn::And(active, hn::Or(r.scalar, hn::Not(InRange(d, depth)))));
+        // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
+        const V t = hn::AllTrue(d, hn::Lt(depth, hn::Set(d, kNoReduction))) ? ExpNegSmall(d, depth)
+                                                                            : ExpNeg(d, depth);
+        T = hn::IfThenElse(active, t, T);
+        l0 = l1;
     }
+    return {T, {E[0], E[1], E[2]}, scalar};
 }
 
 /// One column of the integral functions at rows p (a lane permutation of
