@@ -74,13 +74,15 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
     DepthTrack depth{span.t_near, delta};
     DepthTrack* track = s.depth_outputs ? &depth : nullptr;
     const EmptySpace* es = acc.es;
-    if constexpr (Medium::kHasScalar && !Medium::kShaded) {
+    if constexpr (Medium::kHasScalar) {
         if (acc.simd != nullptr) {
             // With SIMD, samples are classified a batch at a time, and those
             // whose scalar lies below the medium's zero range (BatchOut::zero)
             // give (1, 0): skipped. With skipping, only the runs in non-empty
             // macrocells are classified (a run's samples in an empty one give
-            // (1, 0) too); without, the whole ray is one run.
+            // (1, 0) too); without, the whole ray is one run. Shading keeps a
+            // zero sample zero (σ' = σ·f, g' = (g·D + σ·S)·f with finite
+            // factors), so a shaded medium shades only the others.
             const std::optional<RunFinder> runs =
                 es != nullptr ? std::optional<RunFinder>(std::in_place, *es, grid) : std::nullopt;
             bool in_run = es == nullptr;  // i lies in the evaluated run ending at run_end
