@@ -34,7 +34,8 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
         span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
     const SampleGrid grid{&span, delta, offset, 1};  // eq. (8): segment i sampled at t_{i−1} + offset·δ
     // SIMD: samples classified kBatch at a time, in the direction of travel.
-    const simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, offset, 1};
+    simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, offset, 1};
+    if constexpr (Medium::kShaded) rg.view = medium.view;
     simd::BatchOut batch;
     simd::Window win;
     // The far end of the run being evaluated (set by the skipping walk):
@@ -58,9 +59,10 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
         }
         return medium.at(grid.at(i));  // shaded media shade here
     };
-    // Unshaded scalar media: the classifier applies the rule as well.
-    const bool batch_rule = Medium::kHasScalar && !Medium::kShaded && acc.simd != nullptr &&
-                            acc.simd->rule == kind && acc.simd->model == M;
+    // Scalar media: the classifier applies the rule as well (shaded ones
+    // where it shades them).
+    const bool batch_rule = Medium::kHasScalar && acc.simd != nullptr && acc.simd->rule == kind &&
+                            acc.simd->model == M && (!Medium::kShaded || acc.simd->shade != nullptr);
     auto segment = [&](std::int64_t i) -> Segment {
         if (batch_rule) {
             if (!win.holds(i)) load_window(i);

@@ -10,6 +10,7 @@
 
 #include "core/parallel.h"
 #include "integrate/point_rules.h"
+#include "render/shading.h"
 #include "volume/bricks.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -148,7 +149,7 @@ HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch
 /// operations, so the same bits as the scalar fetch.
 template <class T>
 HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch],
-                             const double (*frac)[kBatch], std::size_t used, double* out,
+                             const double (*frac)[kBatch], std::size_t b0, std::size_t b1, double* out,
                              bool skip_inactive) {
     const D d;
     const std::size_t N = hn::Lanes(d);
@@ -163,7 +164,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     const V nx = hn::Set(d, static_cast<double>(src.nx)), ny = hn::Set(d, static_cast<double>(src.ny));
     const V bx = hn::Set(d, static_cast<double>(src.nx / 2)),
             by = hn::Set(d, static_cast<double>(src.ny / 2));
-    for (std::size_t b = 0; b < used; b += N) {
+    for (std::size_t b = b0; b < b1; b += N) {
         if (skip_inactive) {  // no block with a node at or above zero_below: every value is below it
             const hn::Rebind<std::int32_t, D> di;
             const V half = hn::Set(d, 0.5);
@@ -222,49 +223,49 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     }
 }
 
-/// The trilinear scalar (GridSampler's operations) of samples j0 ..
-/// j0 + count − 1, rounded up to whole vectors; returns how many it wrote.
+/// GridSampler::locate of coordinate `a` of lanes b … b + N − 1: clamped
+/// to [0, n − 1], the cell (≤ n − 2) and the fraction.
+HWY_INLINE void locate(D d, const BatchSource& src, int a, V p, std::size_t b, double (*cell)[kBatch],
+                       double (*frac)[kBatch]) {
+    const std::int64_t n = a == 0 ? src.nx : a == 1 ? src.ny : src.nz;
+    const V x = hn::Min(hn::Max(p, hn::Zero(d)), hn::Set(d, static_cast<double>(n - 1)));
+    const V i = hn::Min(hn::Floor(x), hn::Set(d, static_cast<double>(n - 2)));
+    hn::Store(i, d, cell[a] + b);
+    hn::Store(hn::Sub(x, i), d, frac[a] + b);
+}
+
+/// The positions of samples j0 + b … j0 + b + N − 1: t = t_near + (j −
+/// first + offset)·δ, p = p0 + dp·t (SampleGrid::at, RaySpan::at).
+HWY_INLINE void positions(D d, const RayGrid& ray, std::int64_t j0, std::size_t b, V* p) {
+    const V jj = hn::Iota(d, static_cast<double>(j0 + static_cast<std::int64_t>(b) - ray.first));
+    const V t =
+        hn::Add(hn::Set(d, ray.t_near), hn::Mul(hn::Add(jj, hn::Set(d, ray.offset)), hn::Set(d, ray.delta)));
+    p[0] = hn::Add(hn::Set(d, ray.p0.x), hn::Mul(hn::Set(d, ray.dp.x), t));
+    p[1] = hn::Add(hn::Set(d, ray.p0.y), hn::Mul(hn::Set(d, ray.dp.y), t));
+    p[2] = hn::Add(hn::Set(d, ray.p0.z), hn::Mul(hn::Set(d, ray.dp.z), t));
+}
+
+/// GridSampler::interpolate of the located cells of lanes b0 … b1 − 1
+/// (whole vectors): corner pairs gathered where the type has them, the
+/// corners loaded one by one otherwise.
 template <class T>
-std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count,
-                              double* out, bool skip_inactive = false) {
+HWY_INLINE void trilinear(const BatchSource& src, const double (*cell)[kBatch], const double (*frac)[kBatch],
+                          std::size_t b0, std::size_t b1, double* out, bool skip_inactive) {
     const D d;
     const std::size_t N = hn::Lanes(d);
-    const T* data = static_cast<const T*>(src.data);
-    const std::int64_t sy = src.nx, sz = src.nx * src.ny;
-    const double hi[3] = {static_cast<double>(src.nx - 1), static_cast<double>(src.ny - 1),
-                          static_cast<double>(src.nz - 1)};
-    const double last[3] = {static_cast<double>(src.nx - 2), static_cast<double>(src.ny - 2),
-                            static_cast<double>(src.nz - 2)};
-    const double p0[3] = {ray.p0.x, ray.p0.y, ray.p0.z}, dp[3] = {ray.dp.x, ray.dp.y, ray.dp.z};
-    HWY_ALIGN double cell[3][kBatch];
-    HWY_ALIGN double frac[3][kBatch];
-    HWY_ALIGN double corner[8][kBatch];
-    // whole vectors covering count samples
-    const std::size_t used = std::min<std::size_t>(kBatch, (static_cast<std::size_t>(count) + N - 1) / N * N);
-    for (std::size_t b = 0; b < used; b += N) {
-        // t = t_near + (j − first + offset)·δ, p = p0 + dp·t (RaySpan::at)
-        const V jj = hn::Iota(d, static_cast<double>(j0 + static_cast<std::int64_t>(b) - ray.first));
-        const V t = hn::Add(hn::Set(d, ray.t_near),
-                            hn::Mul(hn::Add(jj, hn::Set(d, ray.offset)), hn::Set(d, ray.delta)));
-        for (int a = 0; a < 3; ++a) {
-            // GridSampler::locate: clamp, the cell (≤ n − 2) and the fraction
-            const V p = hn::Add(hn::Set(d, p0[a]), hn::Mul(hn::Set(d, dp[a]), t));
-            const V x = hn::Min(hn::Max(p, hn::Zero(d)), hn::Set(d, hi[a]));
-            const V i = hn::Min(hn::Floor(x), hn::Set(d, last[a]));
-            hn::Store(i, d, cell[a] + b);
-            hn::Store(hn::Sub(x, i), d, frac[a] + b);
-        }
-    }
     if constexpr (kPairs<T>) {
         // Each gather fetches a corner and its +x neighbour at once (4
         // gathers for 8 corners), in vectors.
         if (sizeof(T) == 4 || src.bricks_x > 0 ||
             src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
-            pair_corners<T>(src, cell, frac, used, out, skip_inactive && src.active != nullptr);
-            return used;
+            pair_corners<T>(src, cell, frac, b0, b1, out, skip_inactive && src.active != nullptr);
+            return;
         }
     }
-    for (std::size_t b = 0; b < used; ++b) {
+    const T* data = static_cast<const T*>(src.data);
+    const std::int64_t sy = src.nx, sz = src.nx * src.ny;
+    HWY_ALIGN double corner[8][kBatch];
+    for (std::size_t b = b0; b < b1; ++b) {
         const std::int64_t base =
             static_cast<std::int64_t>(cell[0][b]) +
             src.nx * (static_cast<std::int64_t>(cell[1][b]) + src.ny * static_cast<std::int64_t>(cell[2][b]));
@@ -278,7 +279,7 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
         corner[6][b] = static_cast<double>(q[sz + sy]);
         corner[7][b] = static_cast<double>(q[sz + sy + 1]);
     }
-    for (std::size_t b = 0; b < used; b += N) {
+    for (std::size_t b = b0; b < b1; b += N) {
         auto c = [&](int k) { return hn::Load(d, corner[k] + b); };
         const V fx = hn::Load(d, frac[0] + b), fy = hn::Load(d, frac[1] + b), fz = hn::Load(d, frac[2] + b);
         // GridSampler::interpolate
@@ -290,29 +291,136 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
         const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
         hn::Store(hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0))), d, out + b);
     }
+}
+
+/// The trilinear scalar (GridSampler's operations) of samples j0 ..
+/// j0 + count − 1, rounded up to whole vectors; returns how many it wrote.
+template <class T>
+std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count,
+                              double* out, bool skip_inactive = false) {
+    const D d;
+    const std::size_t N = hn::Lanes(d);
+    HWY_ALIGN double cell[3][kBatch];
+    HWY_ALIGN double frac[3][kBatch];
+    // whole vectors covering count samples
+    const std::size_t used = std::min<std::size_t>(kBatch, (static_cast<std::size_t>(count) + N - 1) / N * N);
+    for (std::size_t b = 0; b < used; b += N) {
+        V p[3];
+        positions(d, ray, j0, b, p);
+        for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell, frac);
+    }
+    trilinear<T>(src, cell, frac, 0, used, out, skip_inactive);
     return used;
 }
 
+/// ShadedScalarMedium::shade of lanes b … b + N − 1 with on-the-fly
+/// gradients: σ and the source g (after ScalarMedium::classify, before the
+/// model) become σ·f and (g·D + σ·S)·f. The gradient of world_gradient
+/// (central differences of the trilinear field, then the chain rule), the
+/// factors of shade_factors and the gradient-opacity factor: the same
+/// operations in the same order, so the same bits; pow and the
+/// gradient-opacity function are evaluated lane by lane.
+template <class T>
+HWY_INLINE void ShadeLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0, std::size_t b,
+                           V& sigma, V* g) {
+    const ShadeSetup& sh = *src.shade;
+    const std::size_t N = hn::Lanes(d);
+    V p[3];
+    positions(d, ray, j0, b, p);
+    HWY_ALIGN double cell[3][kBatch];
+    HWY_ALIGN double frac[3][kBatch];
+    HWY_ALIGN double value[kBatch];
+    const V h = hn::Set(d, kGradientStep);
+    V du[3];
+    for (int a = 0; a < 3; ++a) {
+        V side[2];
+        for (int k = 0; k < 2; ++k) {  // p + h·e_a, then p − h·e_a
+            for (int e = 0; e < 3; ++e)
+                locate(d, src, e,
+                       e != a   ? p[e]
+                       : k == 0 ? hn::Add(p[e], h)
+                                : hn::Sub(p[e], h),
+                       b, cell, frac);
+            trilinear<T>(src, cell, frac, b, b + N, value, false);
+            side[k] = hn::Load(d, value + b);
+        }
+        du[a] = hn::Div(hn::Sub(side[0], side[1]), hn::Set(d, 2 * kGradientStep));
+    }
+    V grad[3];
+    for (int i = 0; i < 3; ++i) {
+        V r = hn::Zero(d);
+        for (int j = 0; j < 3; ++j) r = hn::Add(r, hn::Mul(hn::Set(d, sh.world_to_index.m[j][i]), du[j]));
+        grad[i] = r;
+    }
+    auto dot = [&](const V* a, const Vec3& v) {
+        return hn::Add(hn::Add(hn::Mul(a[0], hn::Set(d, v.x)), hn::Mul(a[1], hn::Set(d, v.y))),
+                       hn::Mul(a[2], hn::Set(d, v.z)));
+    };
+    const V len = hn::Sqrt(
+        hn::Add(hn::Add(hn::Mul(grad[0], grad[0]), hn::Mul(grad[1], grad[1])), hn::Mul(grad[2], grad[2])));
+    V diffuse[3], specular[3];
+    for (int c = 0; c < 3; ++c) {
+        diffuse[c] = hn::Set(d, sh.light ? sh.ka : 1.0);
+        specular[c] = hn::Zero(d);
+    }
+    if (sh.light) {
+        const auto normal = hn::Gt(len, hn::Zero(d));  // else lit as facing every light, no highlight
+        const V inv = hn::Div(hn::Set(d, 1.0), len);
+        const V n[3] = {hn::Mul(grad[0], inv), hn::Mul(grad[1], inv), hn::Mul(grad[2], inv)};
+        auto light = [&](const Vec3& l, const Rgb& color) {
+            const V ndl = hn::Abs(dot(n, l));
+            const Vec3 hv = l + ray.view;
+            const double hl = length(hv);
+            const V ndh = hl > 0 ? hn::Div(hn::Abs(dot(n, hv)), hn::Set(d, hl)) : hn::Zero(d);
+            V spec = hn::Zero(d);
+            if (sh.ks > 0) {
+                HWY_ALIGN double x[8];
+                hn::Store(ndh, d, x);
+                for (std::size_t l = 0; l < N; ++l) x[l] = sh.ks * std::pow(x[l], sh.p);
+                spec = hn::Load(d, x);
+            }
+            const V kd = hn::Set(d, sh.kd);
+            for (int c = 0; c < 3; ++c) {
+                diffuse[c] = hn::IfThenElse(
+                    normal, hn::Add(diffuse[c], hn::Mul(hn::Mul(kd, ndl), hn::Set(d, color[c]))),
+                    hn::Add(diffuse[c], hn::Set(d, sh.kd * color[c])));
+                specular[c] = hn::IfThenElse(
+                    normal, hn::Add(specular[c], hn::Mul(spec, hn::Set(d, color[c]))), specular[c]);
+            }
+        };
+        if (sh.lights.empty()) {
+            light(ray.view, {1, 1, 1});
+        } else {
+            for (const Light& l : sh.lights) light(l.direction, l.color);
+        }
+    }
+    V opacity = hn::Set(d, 1.0);
+    if (sh.modulate != nullptr) {
+        HWY_ALIGN double x[8];
+        hn::Store(len, d, x);
+        for (std::size_t l = 0; l < N; ++l) x[l] = sh.modulate->gradient_factor(x[l]);
+        opacity = hn::Load(d, x);
+    }
+    for (int c = 0; c < 3; ++c)
+        g[c] = hn::Mul(hn::Add(hn::Mul(g[c], diffuse[c]), hn::Mul(sigma, specular[c])), opacity);
+    sigma = hn::Mul(sigma, opacity);
+}
+
 /// The segments of lanes b … b + N − 1 (BatchSource::rule) from their σ and
-/// c (also stored in `out`, where the scalar fallback reads them): as
-/// ScalarMedium::classify, apply_model and point_rules.h, lane by lane.
-/// Lanes whose optical depth lies outside exp_neg's reduction (or is NaN)
-/// take the scalar rule.
-HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t b, V sigma, const V* color,
+/// source g (ScalarMedium::classify's, shaded where the medium is): as
+/// apply_model and point_rules.h, lane by lane. Lanes whose optical depth
+/// lies outside exp_neg's reduction (or is NaN) take the scalar rule.
+HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t b, V sigma, const V* source,
                           BatchOut& out) {
     V g[3];
-    for (int k = 0; k < 3; ++k) {
-        g[k] = color[k];
-        if (!src.associated) g[k] = hn::Mul(g[k], sigma);
-        if (src.model == Model::absorption) g[k] = hn::Zero(d);
-    }
-    if (src.model == Model::emission) sigma = hn::Zero(d);
+    for (int k = 0; k < 3; ++k) g[k] = src.model == Model::absorption ? hn::Zero(d) : source[k];
+    const V sa = src.model == Model::emission ? hn::Zero(d) : sigma;
     const V dl = hn::Set(d, delta);
-    const V x = hn::Mul(sigma, dl);
+    const V x = hn::Mul(sa, dl);
     V t, weight;
     if (src.rule == PointRule::alpha) {
         const V alpha = exp_v::OneMinusExpNeg(d, x);
-        weight = hn::IfThenElse(hn::Gt(sigma, hn::Zero(d)), hn::Div(alpha, sigma), dl);
+        weight = hn::IfThenElse(hn::Gt(sa, hn::Zero(d)), hn::Div(alpha, sa), dl);
         t = hn::Sub(hn::Set(d, 1.0), alpha);
     } else {
         t = exp_v::ExpNeg(d, x);
@@ -322,16 +430,16 @@ HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t
     for (int k = 0; k < 3; ++k) hn::Store(hn::Mul(g[k], weight), d, out.radiance[k] + b);
     const auto outside = hn::Not(exp_v::InRange(d, x));
     if (hn::AllFalse(d, outside)) return;
+    HWY_ALIGN double s[8];
+    HWY_ALIGN double gs[3][8];
+    hn::Store(sa, d, s);
+    for (int k = 0; k < 3; ++k) hn::Store(g[k], d, gs[k]);
     std::uint8_t bits[8] = {};
     hn::StoreMaskBits(d, outside, bits);  // N ≤ 8 lanes of doubles
     for (std::size_t l = 0; l < hn::Lanes(d); ++l) {
         if (((bits[0] >> l) & 1u) == 0) continue;
         const std::size_t i = b + l;
-        MediumSample m{out.sigma[i], {out.color[0][i], out.color[1][i], out.color[2][i]}};
-        if (!src.associated)
-            for (double& c : m.source) c *= m.sigma;
-        if (src.model == Model::absorption) m.source = {0, 0, 0};
-        if (src.model == Model::emission) m.sigma = 0.0;
+        const MediumSample m{s[l], {gs[0][l], gs[1][l], gs[2][l]}};
         const Segment seg =
             src.rule == PointRule::alpha ? alpha_segment(m, delta) : riemann_segment(m, delta);
         out.t[i] = seg.transmittance;
@@ -339,13 +447,12 @@ HWY_INLINE void ApplyRule(D d, const BatchSource& src, double delta, std::size_t
     }
 }
 
-void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+template <class T>
+void classify_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     const D d;
     HWY_ALIGN double values[kBatch];
-    std::size_t used = 0;
     // vectors of samples in inactive cells come back as −∞: below zero_below
-    visit_dtype(src.type,
-                [&]<class T>(T*) { used = interpolate_typed<T>(src, ray, j0, count, values, true); });
+    const std::size_t used = interpolate_typed<T>(src, ray, j0, count, values, true);
     const V zero_below = hn::Set(d, src.zero_below);
     out.zero = 0;
     for (std::size_t b = 0; b < used; b += hn::Lanes(d)) {
@@ -365,12 +472,20 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
         }
         V r[3];
         eval(d, *src.sigma, v, r);
-        const V sigma = r[0];
+        V sigma = r[0];
         hn::Store(sigma, d, out.sigma + b);
         eval(d, *src.color, v, r);
         for (int k = 0; k < 3; ++k) hn::Store(r[k], d, out.color[k] + b);
-        if (src.rule != PointRule::none) ApplyRule(d, src, ray.delta, b, sigma, r, out);
+        if (src.rule == PointRule::none) continue;
+        V g[3];  // ScalarMedium::classify: c·σ, or q
+        for (int k = 0; k < 3; ++k) g[k] = src.associated ? r[k] : hn::Mul(r[k], sigma);
+        if (src.shade != nullptr) ShadeLanes<T>(d, src, ray, j0, b, sigma, g);
+        ApplyRule(d, src, ray.delta, b, sigma, g, out);
     }
+}
+
+void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
+    visit_dtype(src.type, [&]<class T>(T*) { classify_typed<T>(src, ray, j0, count, out); });
 }
 
 void InterpolateBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {

@@ -24,6 +24,10 @@
 #include "fathom/transfer_function.h"
 #include "fathom/volume.h"
 
+namespace fathom {
+struct ShadeSetup;  // render/shading.h
+}
+
 namespace fathom::simd {
 
 /// Samples per batch (a multiple of every target's lane count).
@@ -81,8 +85,13 @@ struct BatchSource {
     const IntegralFunctions* integrals = nullptr;
     /// With a rule: classify_batch also turns each sample into its segment
     /// (BatchOut::t, radiance) under `model` with δ = RayGrid::delta, as the
-    /// scalar rule does (the same bits). For unshaded scalar media only.
+    /// scalar rule does (the same bits). Shaded media need `shade` too.
     PointRule rule = PointRule::none;
+    /// Optional (nullptr: unshaded): with a rule, each sample that is not
+    /// zero is shaded before the model (ShadedScalarMedium::shade: gradient
+    /// by central differences, Blinn–Phong under RayGrid::view, gradient
+    /// opacity; the same bits). On-the-fly gradients only.
+    const ShadeSetup* shade = nullptr;
     Model model = Model::emission_absorption;
     /// Bricks along x, y and z where `data` holds the samples in bricks
     /// (volume/bricks.h; the paired sample types only, at most 1 GiB); 0:
@@ -103,6 +112,9 @@ struct RayGrid {
     Vec3 p0, dp;
     double t_near = 0, delta = 0, offset = 0;
     std::int64_t first = 1;
+    /// With BatchSource::shade: the unit vector toward the eye
+    /// (ShadedScalarMedium::view).
+    Vec3 view{};
 };
 
 /// The samples a batch holds, b0..b1: up to kBatch from the one asked for,

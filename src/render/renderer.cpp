@@ -134,8 +134,10 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
             }
         }
     }
-    // Unshaded point sampling: the classifier applies the segment rule too.
-    if (batch.data != nullptr && optical && !gradient_work) {
+    // Point sampling: the classifier applies the segment rule too, and
+    // shades with on-the-fly gradients.
+    if (batch.data != nullptr && optical && (!gradient_work || shade.gradients == nullptr)) {
+        if (gradient_work) batch.shade = &shade;
         batch.model = model;
         if (s.integrator == IntegratorKind::alpha) batch.rule = simd::PointRule::alpha;
         if (s.integrator == IntegratorKind::riemann) batch.rule = simd::PointRule::riemann;
