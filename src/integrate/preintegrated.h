@@ -238,6 +238,12 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // The segments between the window's ends, computed on the first request.
     simd::SegmentBatch segs;
     bool segs_ready = false;
+    // Shaded media: the shading factors at the midpoints of those segments
+    // (segment i at t_near + (i − 0.5)·δ), computed on the first request.
+    simd::RayGrid mid{span.p0, span.dp, span.t_near, delta, -0.5, 0};
+    if constexpr (Medium::kShaded) mid.view = medium.view;
+    simd::ShadeBatch shades;
+    bool shades_ready = false;
     std::int64_t run_end = s.order == Order::front_to_back ? n : 0;
     std::uint32_t below = 0;  // bit l: end win.b0 + l is below simd->zero_below
     // The batch of ends from j in the direction of travel; with `mask`, also
@@ -246,6 +252,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         win.start_at(j, s.order == Order::front_to_back, run_end);
         simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
         segs_ready = false;
+        shades_ready = false;
         below = 0;
         if (mask)
             for (int l = 0; l < win.count(); ++l)
@@ -266,33 +273,33 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         val[slot] = medium.end_sample(grid.at(j));
         return val[slot];
     };
+    // Shading with the gradient at the segment's midpoint, taken as
+    // constant over the segment (Lum, Wilson and Ma 2004): g' = g·D + σ·S
+    // integrates to D·E + S·∫σ·e^{−τ} = D·E + S·(1 − t), or D·E + S·τ
+    // without self-attenuation.
+    //
+    // Gradient opacity scales σ and g by f, constant over the segment:
+    // without self-attenuation exactly E' = f·E, t' = t^f; with it,
+    // t' = t^f and E' = E·(1 − t^f)/(1 − t) (opacity-weighted, exact where
+    // the TF is constant over the segment).
+    auto shaded = [full](Segment seg, const auto& sf) {
+        double t = seg.transmittance;
+        if (sf.opacity != 1.0) {
+            const double tf = std::pow(t, sf.opacity);
+            const double scale = !full ? sf.opacity : (t < 1.0 ? (1.0 - tf) / (1.0 - t) : sf.opacity);
+            for (double& r : seg.radiance) r *= scale;
+            seg.transmittance = t = tf;
+        }
+        const double a = full ? 1.0 - t : (t > 0.0 ? -std::log(t) : 0.0);
+        for (int c = 0; c < 3; ++c) seg.radiance[c] = seg.radiance[c] * sf.diffuse[c] + a * sf.specular[c];
+        return seg;
+    };
     auto segment = [&](std::int64_t i) {
         const End f = end(i - 1), b = end(i);
         if constexpr (Medium::kShaded) {
-            // Shading with the gradient at the segment's midpoint, taken as
-            // constant over the segment (Lum, Wilson and Ma 2004): g' = g·D +
-            // σ·S integrates to D·E + S·∫σ·e^{−τ} = D·E + S·(1 − t), or
-            // D·E + S·τ without self-attenuation.
-            //
-            // Gradient opacity scales σ and g by f, constant over the
-            // segment: without self-attenuation exactly E' = f·E, t' = t^f;
-            // with it, t' = t^f and E' = E·(1 − t^f)/(1 − t) (opacity-
-            // weighted, exact where the TF is constant over the segment).
-            Segment seg = preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
+            const Segment seg = preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
             if (seg.transmittance == 1.0 && seg.radiance == Rgb{0, 0, 0}) return seg;  // nothing to shade
-            const ShadeFactors sf =
-                medium.factors(span.at(span.t_near + (static_cast<double>(i) - 0.5) * delta));
-            double t = seg.transmittance;
-            if (sf.opacity != 1.0) {
-                const double tf = std::pow(t, sf.opacity);
-                const double scale = !full ? sf.opacity : (t < 1.0 ? (1.0 - tf) / (1.0 - t) : sf.opacity);
-                for (double& r : seg.radiance) r *= scale;
-                seg.transmittance = t = tf;
-            }
-            const double a = full ? 1.0 - t : (t > 0.0 ? -std::log(t) : 0.0);
-            for (int c = 0; c < 3; ++c)
-                seg.radiance[c] = seg.radiance[c] * sf.diffuse[c] + a * sf.specular[c];
-            return seg;
+            return shaded(seg, medium.factors(span.at(span.t_near + (static_cast<double>(i) - 0.5) * delta)));
         } else if constexpr (Medium::kHasScalar) {
             return preintegrate_scalar<M>(*medium.tf, f, b, delta, full);
         } else {
@@ -328,7 +335,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         run_end = i - m;
         return -m;
     };
-    if constexpr (Medium::kHasScalar && !Medium::kShaded) {
+    if constexpr (Medium::kHasScalar) {
         if (simd != nullptr) {
             // With SIMD, an evaluated run is split by its batch of ends: a
             // segment whose two ends both lie below the medium's zero range
@@ -345,6 +352,28 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
                     segs_ready = true;
                 }
                 const auto l = static_cast<std::size_t>(i - 1 - win.b0);
+                if constexpr (Medium::kShaded) {
+                    if (((segs.scalar >> l) & 1u) != 0) return segment(i);
+                    const Segment seg{segs.transmittance[l],
+                                      {segs.radiance[0][l], segs.radiance[1][l], segs.radiance[2][l]}};
+                    if (seg.transmittance == 1.0 && seg.radiance == Rgb{0, 0, 0}) return seg;
+                    if (simd->shade == nullptr)  // precomputed gradients
+                        return shaded(seg, medium.factors(span.at(span.t_near +
+                                                                  (static_cast<double>(i) - 0.5) * delta)));
+                    if (!shades_ready) {  // the window's segments, but those with both ends below the zero
+                                          // range
+                        simd::shade_batch(*simd, mid, win.b0 + 1, win.count() - 1, below & (below >> 1),
+                                          shades);
+                        shades_ready = true;
+                    }
+                    decltype(medium.factors(Vec3{})) sf;
+                    for (int c = 0; c < 3; ++c) {
+                        sf.diffuse[c] = shades.diffuse[c][l];
+                        sf.specular[c] = shades.specular[c][l];
+                    }
+                    sf.opacity = shades.opacity[l];
+                    return shaded(seg, sf);
+                }
                 if (((segs.scalar >> l) & 1u) != 0) return segment(i);
                 return {segs.transmittance[l],
                         {segs.radiance[0][l], segs.radiance[1][l], segs.radiance[2][l]}};

@@ -313,16 +313,16 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
     return used;
 }
 
-/// ShadedScalarMedium::shade of lanes b … b + N − 1 with on-the-fly
-/// gradients: σ and the source g (after ScalarMedium::classify, before the
-/// model) become σ·f and (g·D + σ·S)·f. The gradient of world_gradient
-/// (central differences of the trilinear field, then the chain rule), the
-/// factors of shade_factors and the gradient-opacity factor: the same
-/// operations in the same order, so the same bits; pow and the
-/// gradient-opacity function are evaluated lane by lane.
+/// ShadedScalarMedium::factors at points j0 + b … j0 + b + N − 1 of `ray`
+/// with on-the-fly gradients: D (diffuse), S (specular) and the
+/// gradient-opacity factor f. The gradient of world_gradient (central
+/// differences of the trilinear field, then the chain rule), the factors of
+/// shade_factors and gradient_factor: the same operations in the same
+/// order, so the same bits; pow and the gradient-opacity function are
+/// evaluated lane by lane.
 template <class T>
-HWY_INLINE void ShadeLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0, std::size_t b,
-                           V& sigma, V* g) {
+HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0,
+                                  std::size_t b, V* diffuse, V* specular, V& opacity) {
     const ShadeSetup& sh = *src.shade;
     const std::size_t N = hn::Lanes(d);
     V p[3];
@@ -358,7 +358,6 @@ HWY_INLINE void ShadeLanes(D d, const BatchSource& src, const RayGrid& ray, std:
     };
     const V len = hn::Sqrt(
         hn::Add(hn::Add(hn::Mul(grad[0], grad[0]), hn::Mul(grad[1], grad[1])), hn::Mul(grad[2], grad[2])));
-    V diffuse[3], specular[3];
     for (int c = 0; c < 3; ++c) {
         diffuse[c] = hn::Set(d, sh.light ? sh.ka : 1.0);
         specular[c] = hn::Zero(d);
@@ -394,13 +393,23 @@ HWY_INLINE void ShadeLanes(D d, const BatchSource& src, const RayGrid& ray, std:
             for (const Light& l : sh.lights) light(l.direction, l.color);
         }
     }
-    V opacity = hn::Set(d, 1.0);
+    opacity = hn::Set(d, 1.0);
     if (sh.modulate != nullptr) {
         HWY_ALIGN double x[8];
         hn::Store(len, d, x);
         for (std::size_t l = 0; l < N; ++l) x[l] = sh.modulate->gradient_factor(x[l]);
         opacity = hn::Load(d, x);
     }
+}
+
+/// ShadedScalarMedium::shade of the samples j0 + b … j0 + b + N − 1: σ and
+/// the source g (after ScalarMedium::classify, before the model) become
+/// σ·f and (g·D + σ·S)·f.
+template <class T>
+HWY_INLINE void ShadeLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0, std::size_t b,
+                           V& sigma, V* g) {
+    V diffuse[3], specular[3], opacity;
+    ShadeFactorsLanes<T>(d, src, ray, j0, b, diffuse, specular, opacity);
     for (int c = 0; c < 3; ++c)
         g[c] = hn::Mul(hn::Add(hn::Mul(g[c], diffuse[c]), hn::Mul(sigma, specular[c])), opacity);
     sigma = hn::Mul(sigma, opacity);
@@ -488,6 +497,25 @@ void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, 
     visit_dtype(src.type, [&]<class T>(T*) { classify_typed<T>(src, ray, j0, count, out); });
 }
 
+void ShadeBatchAt(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, std::uint32_t skip,
+                  ShadeBatch& out) {
+    const D d;
+    const std::size_t N = hn::Lanes(d);
+    visit_dtype(src.type, [&]<class T>(T*) {
+        for (std::size_t b = 0; b < static_cast<std::size_t>(count); b += N) {
+            const std::uint32_t lanes = ((1u << N) - 1u) << b;
+            if ((skip & lanes) == lanes) continue;
+            V diffuse[3], specular[3], opacity;
+            ShadeFactorsLanes<T>(d, src, ray, j0, b, diffuse, specular, opacity);
+            for (int c = 0; c < 3; ++c) {
+                hn::Store(diffuse[c], d, out.diffuse[c] + b);
+                hn::Store(specular[c], d, out.specular[c] + b);
+            }
+            hn::Store(opacity, d, out.opacity + b);
+        }
+    });
+}
+
 void InterpolateBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {
     visit_dtype(src.type, [&]<class T>(T*) { interpolate_typed<T>(src, ray, j0, count, out); });
 }
@@ -506,6 +534,7 @@ namespace fathom::simd {
 
 HWY_EXPORT(ClassifyBatch);
 HWY_EXPORT(InterpolateBatch);
+HWY_EXPORT(ShadeBatchAt);
 HWY_EXPORT(TargetOf);
 
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
@@ -514,6 +543,11 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
 
 void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {
     HWY_DYNAMIC_DISPATCH(InterpolateBatch)(src, ray, j0, count, out);
+}
+
+void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, std::uint32_t skip,
+                 ShadeBatch& out) {
+    HWY_DYNAMIC_DISPATCH(ShadeBatchAt)(src, ray, j0, count, skip, out);
 }
 
 namespace {

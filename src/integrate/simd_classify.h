@@ -171,6 +171,20 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
 /// (whole vectors are computed) and is 64-byte aligned.
 void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out);
 
+/// ShadedScalarMedium::factors (on-the-fly gradients, BatchSource::shade)
+/// at points j0 .. j0 + count − 1 of `ray` (count ≤ kBatch), per lane.
+struct ShadeBatch {
+    alignas(64) double diffuse[3][kBatch];
+    alignas(64) double specular[3][kBatch];
+    alignas(64) double opacity[kBatch];
+};
+
+/// Fills `out` with the factors at points j0 .. j0 + count − 1 of `ray`
+/// (whole vectors), leaving out vectors whose every lane has its bit set in
+/// `skip`; the same bits as ShadedScalarMedium::factors.
+void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, std::uint32_t skip,
+                 ShadeBatch& out);
+
 /// The name of the target classify_batch dispatches to now (e.g. "AVX2").
 std::string active_target();
 /// Every target compiled in and supported by this CPU (bit masks of
