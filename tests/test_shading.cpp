@@ -3,6 +3,7 @@
 // term, lights from the scene, and what shading must not change.
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numbers>
 
 #include <gtest/gtest.h>
@@ -10,6 +11,7 @@
 #include "fathom/error.h"
 #include "fathom/render.h"
 
+#include "render/shading.h"
 #include "synthetic.h"
 
 using namespace fathom;
@@ -111,6 +113,25 @@ TEST(Shading, SpecularHighlightIsWhiteAndWeightedByOpacity) {
         for (int c = 0; c < 3; ++c)
             EXPECT_NEAR(r.radiance[c], std::cos(theta) * r.alpha, 1e-12) << to_string(k);
     }
+}
+
+TEST(Shading, HighlightPowersAreWithinAFewUlpOfPow) {
+    // Whole shininess: repeated squaring, within 2p ulp of std::pow (relative);
+    // otherwise std::pow itself.
+    for (int p = 1; p <= 128; ++p)
+        for (int i = 0; i <= 1000; ++i) {
+            const double x = i / 1000.0 + (i % 7) * 1e-5;
+            const double want = std::pow(x, p), got = highlight_pow(x, p);
+            ASSERT_NEAR(got, want, 2.0 * p * std::numeric_limits<double>::epsilon() * want) << x << "^" << p;
+        }
+    EXPECT_TRUE(whole_shininess(10));
+    EXPECT_FALSE(whole_shininess(0.0));
+    EXPECT_FALSE(whole_shininess(10.5));
+    EXPECT_FALSE(whole_shininess(129));
+    EXPECT_EQ(highlight_pow(0.7, 10.5), std::pow(0.7, 10.5));
+    EXPECT_EQ(highlight_pow(0.7, 0.0), 1.0);
+    EXPECT_EQ(highlight_pow(0.0, 10.0), 0.0);
+    EXPECT_EQ(highlight_pow(1.0, 128.0), 1.0);
 }
 
 TEST(Shading, DirectionalLightsFromTheSettings) {

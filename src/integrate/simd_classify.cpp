@@ -318,8 +318,8 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
 /// gradient-opacity factor f. The gradient of world_gradient (central
 /// differences of the trilinear field, then the chain rule), the factors of
 /// shade_factors and gradient_factor: the same operations in the same
-/// order, so the same bits; pow and the gradient-opacity function are
-/// evaluated lane by lane.
+/// order, so the same bits; std::pow (a shininess that is not a whole
+/// number) and the gradient-opacity function are evaluated lane by lane.
 template <class T>
 HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0,
                                   std::size_t b, V* diffuse, V* specular, V& opacity) {
@@ -372,7 +372,17 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
             const double hl = length(hv);
             const V ndh = hl > 0 ? hn::Div(hn::Abs(dot(n, hv)), hn::Set(d, hl)) : hn::Zero(d);
             V spec = hn::Zero(d);
-            if (sh.ks > 0) {
+            if (sh.ks > 0 && whole_shininess(sh.p)) {  // highlight_pow's squarings
+                auto n = static_cast<unsigned>(sh.p);
+                V r = hn::Set(d, 1.0), base = ndh;
+                for (;;) {
+                    if ((n & 1u) != 0) r = hn::Mul(r, base);
+                    n >>= 1;
+                    if (n == 0) break;
+                    base = hn::Mul(base, base);
+                }
+                spec = hn::Mul(hn::Set(d, sh.ks), r);
+            } else if (sh.ks > 0) {
                 HWY_ALIGN double x[8];
                 hn::Store(ndh, d, x);
                 for (std::size_t l = 0; l < N; ++l) x[l] = sh.ks * std::pow(x[l], sh.p);
