@@ -65,7 +65,7 @@ struct Args {
     double step = 0, termination = 0;
     int frames = 5;
     double turn = 10.0;
-    bool alpha_only = false;
+    bool alpha_only = false, shade = false;
     std::string json, images = "vtk_peer";
     CLI::Option *o_width{}, *o_height{}, *o_step{}, *o_threads{}, *o_termination{};
 };
@@ -134,6 +134,9 @@ fathom::Scene load_scene(const Args& a) {
     if (a.o_step->count()) s.step = a.step;
     if (a.o_threads->count()) s.threads = a.threads;
     if (a.o_termination->count()) s.termination = a.termination;
+    if (a.shade) s.shading.enabled = true;
+    if (s.shading.enabled && !s.shading.lights.empty())
+        throw UsageError("the scene's lights have no counterpart here (both sides use a head light)");
     s.validate();
     return sc;
 }
@@ -302,7 +305,16 @@ public:
         prop_->SetScalarOpacity(tf.opacity);
         prop_->SetScalarOpacityUnitDistance(h);  // u = d, see to_vtk_transfer
         prop_->SetInterpolationTypeToLinear();   // trilinear scalar, like fathom
-        prop_->ShadeOff();                       // emission–absorption only, no lighting
+        const fathom::Shading& sh = s.shading;
+        if (sh.enabled) {  // Blinn–Phong with the renderer's head light; VTK's normals are precomputed
+            prop_->ShadeOn();
+            prop_->SetAmbient(sh.ambient);
+            prop_->SetDiffuse(sh.diffuse);
+            prop_->SetSpecular(sh.specular);
+            prop_->SetSpecularPower(sh.shininess);
+        } else {
+            prop_->ShadeOff();  // emission–absorption only, no lighting
+        }
         prop_->IndependentComponentsOn();
 
         mapper_->SetInputData(image_);
@@ -497,9 +509,9 @@ int run(const Args& a) {
     const Difference diff = compare(fathom_runs.front().last, vtk_rgb);
 
     const double vtk_median = median(vtk.seconds);
-    std::printf("%s %dx%d step %g %s (%g world units), %d threads, %d frames, turn %g deg; load %.2f s\n",
+    std::printf("%s %dx%d step %g %s (%g world units), %d threads, %d frames, turn %g deg%s; load %.2f s\n",
                 name.c_str(), s.width, s.height, s.step, s.step_world ? "world" : "voxel", h, threads,
-                a.frames, a.turn, load_s);
+                a.frames, a.turn, s.shading.enabled ? ", shaded" : "", load_s);
     // Each frame's VTK time over fathom's at the same camera, moments apart:
     // their median is less exposed to the machine's drift than the ratio of
     // the medians.
@@ -547,6 +559,7 @@ int run(const Args& a) {
                          {"step_unit", s.step_world ? "world" : "voxel"},
                          {"step_world", h},
                          {"termination", s.termination},
+                         {"shaded", s.shading.enabled},
                          {"threads", threads},
                          {"frames", a.frames},
                          {"turn_degrees", a.turn},
@@ -597,6 +610,8 @@ int main(int argc, char** argv) {
     app.add_option("--frames", a.frames, "Timed frames (default 5); medians are reported");
     app.add_option("--turn", a.turn, "Degrees the camera orbits between frames (default 10)");
     app.add_flag("--alpha-only", a.alpha_only, "Time fathom's alpha integrator only (not also the scene's)");
+    app.add_flag("--shade", a.shade,
+                 "Gradient shading on both sides (fathom's Blinn-Phong coefficients; head light)");
     app.add_option("--json", a.json, "Write the figures as JSON to this file");
     app.add_option("--images", a.images, "Prefix of the last-frame PNGs (default vtk_peer)");
     try {
