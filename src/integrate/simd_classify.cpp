@@ -144,6 +144,18 @@ HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch
     return hn::Add(hn::Mul(index, hn::Set(d, static_cast<double>(Bricks::kBrickNodes))), within);
 }
 
+/// GridSampler::interpolate of the corners c[0..7] ((0,0,0), (1,0,0),
+/// (0,1,0), (1,1,0), (0,0,1), … in x-fastest order) at fractions (fx, fy, fz).
+HWY_INLINE V Lerp8(const V* c, V fx, V fy, V fz) {
+    const V c00 = hn::Add(c[0], hn::Mul(fx, hn::Sub(c[1], c[0])));
+    const V c10 = hn::Add(c[2], hn::Mul(fx, hn::Sub(c[3], c[2])));
+    const V c01 = hn::Add(c[4], hn::Mul(fx, hn::Sub(c[5], c[4])));
+    const V c11 = hn::Add(c[6], hn::Mul(fx, hn::Sub(c[7], c[6])));
+    const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
+    const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
+    return hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0)));
+}
+
 /// GridSampler::interpolate of vectors of cells and fractions, the corners
 /// gathered in pairs (q[0], q[1]) per row: the same values, the same
 /// operations, so the same bits as the scalar fetch.
@@ -211,16 +223,139 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
                 c[2 * r + 1] = hn::PromoteTo(d, hi);
             }
         }
-        const V fx = hn::Load(d, frac[0] + b), fy = hn::Load(d, frac[1] + b), fz = hn::Load(d, frac[2] + b);
-        // GridSampler::interpolate
-        const V c00 = hn::Add(c[0], hn::Mul(fx, hn::Sub(c[1], c[0])));
-        const V c10 = hn::Add(c[2], hn::Mul(fx, hn::Sub(c[3], c[2])));
-        const V c01 = hn::Add(c[4], hn::Mul(fx, hn::Sub(c[5], c[4])));
-        const V c11 = hn::Add(c[6], hn::Mul(fx, hn::Sub(c[7], c[6])));
-        const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
-        const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
-        hn::Store(hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0))), d, out + b);
+        hn::Store(Lerp8(c, hn::Load(d, frac[0] + b), hn::Load(d, frac[1] + b), hn::Load(d, frac[2] + b)), d,
+                  out + b);
     }
+}
+
+/// Nodes i, i + 1 and i + 2 of a row from one gather per lane, at byte
+/// offsets `o` of the first (8- and 16-bit samples; the 16-bit ones from
+/// 64-bit words): as doubles. Reads that would pass the array's end are
+/// moved back and the word shifted.
+template <class T>
+HWY_INLINE void gather_triple(D d, const BatchSource& src, V o, V* v) {
+    const std::int64_t bytes = src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T));
+    if constexpr (sizeof(T) == 1) {
+        const hn::Rebind<std::int32_t, D> di;
+        const hn::Rebind<std::uint32_t, D> du;
+        const auto oi = hn::DemoteTo(di, o);
+        const auto o4 = hn::Min(oi, hn::Set(di, static_cast<std::int32_t>(bytes - 4)));
+        auto w = hn::BitCast(du, hn::GatherOffset(di, reinterpret_cast<const std::int32_t*>(src.data), o4));
+        w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(oi, o4))));
+        const auto wi = hn::BitCast(di, w);
+        if constexpr (std::is_signed_v<T>) {
+            v[0] = hn::PromoteTo(d, hn::ShiftRight<24>(hn::ShiftLeft<24>(wi)));
+            v[1] = hn::PromoteTo(d, hn::ShiftRight<24>(hn::ShiftLeft<16>(wi)));
+            v[2] = hn::PromoteTo(d, hn::ShiftRight<24>(hn::ShiftLeft<8>(wi)));
+        } else {
+            const auto m = hn::Set(du, 0xFFu);
+            v[0] = hn::PromoteTo(d, hn::BitCast(di, hn::And(w, m)));
+            v[1] = hn::PromoteTo(d, hn::BitCast(di, hn::And(hn::ShiftRight<8>(w), m)));
+            v[2] = hn::PromoteTo(d, hn::BitCast(di, hn::And(hn::ShiftRight<16>(w), m)));
+        }
+    } else {
+        const hn::Rebind<std::int64_t, D> dl;
+        const hn::Rebind<std::uint64_t, D> dq;
+        const auto ol = hn::ConvertTo(dl, o);
+        const auto o8 = hn::Min(ol, hn::Set(dl, bytes - 8));
+        auto w = hn::GatherOffset(dq, static_cast<const std::uint64_t*>(src.data), o8);
+        w = hn::operator>>(w, hn::BitCast(dq, hn::ShiftLeft<3>(hn::Sub(ol, o8))));
+        const auto wl = hn::BitCast(dl, w);
+        if constexpr (std::is_signed_v<T>) {
+            v[0] = hn::ConvertTo(d, hn::ShiftRight<48>(hn::ShiftLeft<48>(wl)));
+            v[1] = hn::ConvertTo(d, hn::ShiftRight<48>(hn::ShiftLeft<32>(wl)));
+            v[2] = hn::ConvertTo(d, hn::ShiftRight<48>(hn::ShiftLeft<16>(wl)));
+        } else {
+            const auto m = hn::Set(dq, 0xFFFFu);
+            v[0] = hn::ConvertTo(d, hn::BitCast(dl, hn::And(w, m)));
+            v[1] = hn::ConvertTo(d, hn::BitCast(dl, hn::And(hn::ShiftRight<16>(w), m)));
+            v[2] = hn::ConvertTo(d, hn::BitCast(dl, hn::And(hn::ShiftRight<32>(w), m)));
+        }
+    }
+}
+
+/// As shared_rows along x: the lower point's cell is `cell`, the upper
+/// one's cell + e_x; each of the 4 rows gives nodes x, x + 1 and x + 2 from
+/// one gather (gather_triple), 4 gathers instead of 8.
+template <class T>
+HWY_INLINE void shared_x(const BatchSource& src, const double (*cell)[kBatch], const double (*lo)[kBatch],
+                         const double (*hi)[kBatch], std::size_t b, V& out_lo, V& out_hi) {
+    const D d;
+    constexpr double size = sizeof(T);
+    const double sy = static_cast<double>(src.nx) * size, sz = sy * static_cast<double>(src.ny);
+    const V index =
+        hn::Add(hn::Load(d, cell[0] + b),
+                hn::Mul(hn::Set(d, static_cast<double>(src.nx)),
+                        hn::Add(hn::Load(d, cell[1] + b),
+                                hn::Mul(hn::Set(d, static_cast<double>(src.ny)), hn::Load(d, cell[2] + b)))));
+    const V off = hn::Mul(index, hn::Set(d, size));  // exact integers
+    const double rows[4] = {0, sy, sz, sz + sy};
+    V r[4][3];
+    for (int k = 0; k < 4; ++k) gather_triple<T>(d, src, hn::Add(off, hn::Set(d, rows[k])), r[k]);
+    V c[8];
+    for (int k = 0; k < 4; ++k) {
+        c[2 * k] = r[k][0];
+        c[2 * k + 1] = r[k][1];
+    }
+    out_lo = Lerp8(c, hn::Load(d, lo[0] + b), hn::Load(d, lo[1] + b), hn::Load(d, lo[2] + b));
+    for (int k = 0; k < 4; ++k) {
+        c[2 * k] = r[k][1];
+        c[2 * k + 1] = r[k][2];
+    }
+    out_hi = Lerp8(c, hn::Load(d, hi[0] + b), hn::Load(d, hi[1] + b), hn::Load(d, hi[2] + b));
+}
+
+/// The trilinear values of two points per lane b … b + N − 1 one cell apart
+/// along axis a = 1 (y) or 2 (z): `cell` locates the lower one, and the
+/// upper one's cell is cell + e_a in every lane (x and the other axis
+/// equal); fractions `lo` and `hi`. Their corners span 6 rows of x-pairs,
+/// gathered once (8- and 16-bit samples, x-fastest, under kPairBytesMax):
+/// the same values as two pair_corners calls, 6 gathers instead of 8.
+template <class T>
+HWY_INLINE void shared_rows(const BatchSource& src, int a, const double (*cell)[kBatch],
+                            const double (*lo)[kBatch], const double (*hi)[kBatch], std::size_t b, V& out_lo,
+                            V& out_hi) {
+    const D d;
+    const hn::Rebind<std::int32_t, D> di;
+    constexpr std::int64_t size = sizeof(T);
+    const std::int64_t sy = src.nx * size, sz = sy * src.ny;
+    // rows (y, z) from the lower cell's: a = y: (0,0) (1,0) (2,0) (0,1) (1,1) (2,1);
+    // a = z: (0,0) (1,0) (0,1) (1,1) (0,2) (1,2)
+    const std::int64_t rows[6] = {0,
+                                  sy,
+                                  a == 1 ? 2 * sy : sz,
+                                  a == 1 ? sz : sz + sy,
+                                  a == 1 ? sz + sy : 2 * sz,
+                                  a == 1 ? sz + 2 * sy : 2 * sz + sy};
+    const std::int64_t stored = src.nx * src.ny * src.nz;
+    const V index =
+        hn::Add(hn::Load(d, cell[0] + b),
+                hn::Mul(hn::Set(d, static_cast<double>(src.nx)),
+                        hn::Add(hn::Load(d, cell[1] + b),
+                                hn::Mul(hn::Set(d, static_cast<double>(src.ny)), hn::Load(d, cell[2] + b)))));
+    const auto off = hn::DemoteTo(di, hn::Mul(index, hn::Set(d, static_cast<double>(size))));
+    const auto last = hn::Set(di, static_cast<std::int32_t>(stored * size - 4));
+    V r[6][2];
+    for (int k = 0; k < 6; ++k) {
+        hn::Vec<decltype(di)> l, h;
+        gather_pair<T>(di, src, hn::Add(off, hn::Set(di, static_cast<std::int32_t>(rows[k]))), last, l, h);
+        r[k][0] = hn::PromoteTo(d, l);
+        r[k][1] = hn::PromoteTo(d, h);
+    }
+    // the rows of the lower point's corners, then the upper's
+    const int lower[4] = {0, 1, a == 1 ? 3 : 2, a == 1 ? 4 : 3};
+    const int upper[4] = {a == 1 ? 1 : 2, a == 1 ? 2 : 3, 4, 5};
+    V c[8];
+    for (int k = 0; k < 4; ++k) {
+        c[2 * k] = r[lower[k]][0];
+        c[2 * k + 1] = r[lower[k]][1];
+    }
+    out_lo = Lerp8(c, hn::Load(d, lo[0] + b), hn::Load(d, lo[1] + b), hn::Load(d, lo[2] + b));
+    for (int k = 0; k < 4; ++k) {
+        c[2 * k] = r[upper[k]][0];
+        c[2 * k + 1] = r[upper[k]][1];
+    }
+    out_hi = Lerp8(c, hn::Load(d, hi[0] + b), hn::Load(d, hi[1] + b), hn::Load(d, hi[2] + b));
 }
 
 /// GridSampler::locate of coordinate `a` of lanes b … b + N − 1: clamped
@@ -280,16 +415,10 @@ HWY_INLINE void trilinear(const BatchSource& src, const double (*cell)[kBatch], 
         corner[7][b] = static_cast<double>(q[sz + sy + 1]);
     }
     for (std::size_t b = b0; b < b1; b += N) {
-        auto c = [&](int k) { return hn::Load(d, corner[k] + b); };
-        const V fx = hn::Load(d, frac[0] + b), fy = hn::Load(d, frac[1] + b), fz = hn::Load(d, frac[2] + b);
-        // GridSampler::interpolate
-        const V c00 = hn::Add(c(0), hn::Mul(fx, hn::Sub(c(1), c(0))));
-        const V c10 = hn::Add(c(2), hn::Mul(fx, hn::Sub(c(3), c(2))));
-        const V c01 = hn::Add(c(4), hn::Mul(fx, hn::Sub(c(5), c(4))));
-        const V c11 = hn::Add(c(6), hn::Mul(fx, hn::Sub(c(7), c(6))));
-        const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
-        const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
-        hn::Store(hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0))), d, out + b);
+        V c[8];
+        for (int k = 0; k < 8; ++k) c[k] = hn::Load(d, corner[k] + b);
+        hn::Store(Lerp8(c, hn::Load(d, frac[0] + b), hn::Load(d, frac[1] + b), hn::Load(d, frac[2] + b)), d,
+                  out + b);
     }
 }
 
@@ -331,9 +460,34 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
     HWY_ALIGN double frac[3][kBatch];
     HWY_ALIGN double value[kBatch];
     const V h = hn::Set(d, kGradientStep);
+    // The two points' cells along each axis are usually neighbours: their
+    // corners then share nodes, gathered once (shared_x, shared_rows).
+    constexpr bool kShareRows = kPairs<T> && sizeof(T) <= 2;
+    const bool share = kShareRows && src.bricks_x == 0 &&
+                       src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax;
+    HWY_ALIGN double cell_lo[3][kBatch];
+    HWY_ALIGN double frac_lo[3][kBatch];
     V du[3];
     for (int a = 0; a < 3; ++a) {
         V side[2];
+        if (share) {
+            for (int e = 0; e < 3; ++e) {
+                locate(d, src, e, e != a ? p[e] : hn::Add(p[e], h), b, cell, frac);
+                locate(d, src, e, e != a ? p[e] : hn::Sub(p[e], h), b, cell_lo, frac_lo);
+            }
+            const V next = hn::Add(hn::Load(d, cell_lo[a] + b), hn::Set(d, 1.0));
+            if (hn::AllTrue(d, hn::Eq(hn::Load(d, cell[a] + b), next))) {
+                if constexpr (kShareRows) {
+                    if (a == 0) {
+                        shared_x<T>(src, cell_lo, frac_lo, frac, b, side[1], side[0]);
+                    } else {
+                        shared_rows<T>(src, a, cell_lo, frac_lo, frac, b, side[1], side[0]);
+                    }
+                }
+                du[a] = hn::Div(hn::Sub(side[0], side[1]), hn::Set(d, 2 * kGradientStep));
+                continue;
+            }
+        }
         for (int k = 0; k < 2; ++k) {  // p + h·e_a, then p − h·e_a
             for (int e = 0; e < 3; ++e)
                 locate(d, src, e,
