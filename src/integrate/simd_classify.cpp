@@ -124,6 +124,15 @@ HWY_INLINE void gather_pair(DI di, const BatchSource& src, VI o, VI last, VI& lo
     }
 }
 
+/// The x-fastest node index i + nx·(j + ny·k) of lanes b … b + N − 1 of the
+/// cells, in doubles (exact: an integer below 2⁵³).
+HWY_INLINE V linear_node(D d, const BatchSource& src, const double (*cell)[kBatch], std::size_t b) {
+    return hn::Add(hn::Load(d, cell[0] + b),
+                   hn::Mul(hn::Set(d, static_cast<double>(src.nx)),
+                           hn::Add(hn::Load(d, cell[1] + b), hn::Mul(hn::Set(d, static_cast<double>(src.ny)),
+                                                                     hn::Load(d, cell[2] + b)))));
+}
+
 /// Bricks::cell_index of lanes b … b + N − 1 of the cells, in doubles
 /// (exact: every term is an integer below 2³¹).
 HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch], std::size_t b) {
@@ -173,7 +182,6 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     const std::int64_t rows[4] = {0, sy, sz, sz + sy};
     const std::int64_t stored =
         bricked ? src.bricks_x * src.bricks_y * src.bricks_z * Bricks::kBrickNodes : src.nx * src.ny * src.nz;
-    const V nx = hn::Set(d, static_cast<double>(src.nx)), ny = hn::Set(d, static_cast<double>(src.ny));
     const V bx = hn::Set(d, static_cast<double>(src.nx / 2)),
             by = hn::Set(d, static_cast<double>(src.ny / 2));
     for (std::size_t b = b0; b < b1; b += N) {
@@ -192,12 +200,8 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
             }
         }
         // the byte offset of the cell's first node: an exact integer in doubles
-        const V bytes =
-            hn::Mul(bricked ? brick_node(d, src, cell, b)
-                            : hn::Add(hn::Load(d, cell[0] + b),
-                                      hn::Mul(nx, hn::Add(hn::Load(d, cell[1] + b),
-                                                          hn::Mul(ny, hn::Load(d, cell[2] + b))))),
-                    hn::Set(d, static_cast<double>(size)));
+        const V bytes = hn::Mul(bricked ? brick_node(d, src, cell, b) : linear_node(d, src, cell, b),
+                                hn::Set(d, static_cast<double>(size)));
         V c[8];
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
             const hn::Rebind<std::int64_t, D> dl;
@@ -283,11 +287,7 @@ HWY_INLINE void shared_x(const BatchSource& src, const double (*cell)[kBatch], c
     const D d;
     constexpr double size = sizeof(T);
     const double sy = static_cast<double>(src.nx) * size, sz = sy * static_cast<double>(src.ny);
-    const V index =
-        hn::Add(hn::Load(d, cell[0] + b),
-                hn::Mul(hn::Set(d, static_cast<double>(src.nx)),
-                        hn::Add(hn::Load(d, cell[1] + b),
-                                hn::Mul(hn::Set(d, static_cast<double>(src.ny)), hn::Load(d, cell[2] + b)))));
+    const V index = linear_node(d, src, cell, b);
     const V off = hn::Mul(index, hn::Set(d, size));  // exact integers
     const double rows[4] = {0, sy, sz, sz + sy};
     V r[4][3];
@@ -328,11 +328,7 @@ HWY_INLINE void shared_rows(const BatchSource& src, int a, const double (*cell)[
                                   a == 1 ? sz + sy : 2 * sz,
                                   a == 1 ? sz + 2 * sy : 2 * sz + sy};
     const std::int64_t stored = src.nx * src.ny * src.nz;
-    const V index =
-        hn::Add(hn::Load(d, cell[0] + b),
-                hn::Mul(hn::Set(d, static_cast<double>(src.nx)),
-                        hn::Add(hn::Load(d, cell[1] + b),
-                                hn::Mul(hn::Set(d, static_cast<double>(src.ny)), hn::Load(d, cell[2] + b)))));
+    const V index = linear_node(d, src, cell, b);
     const auto off = hn::DemoteTo(di, hn::Mul(index, hn::Set(d, static_cast<double>(size))));
     const auto last = hn::Set(di, static_cast<std::int32_t>(stored * size - 4));
     V r[6][2];
