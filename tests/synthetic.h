@@ -4,6 +4,8 @@
 #include <functional>
 #include <string>
 
+#include "fathom/camera.h"
+#include "fathom/render.h"
 #include "fathom/transfer_function.h"
 #include "fathom/volume.h"
 
@@ -29,6 +31,21 @@ inline TransferFunction extinction_tf(std::vector<std::pair<double, double>> sig
     tf.alpha_points = std::move(sigma);
     tf.color_points = {{0.0, color}};
     return tf;
+}
+
+/// Cameras for comparing renders: two axis-aligned views (rays along
+/// macrocell faces), an oblique one at `oblique` half diagonals, and an
+/// orthographic one from above.
+inline std::vector<Camera> comparison_cameras(const Volume& v, double oblique = 2.2) {
+    const Bounds b = volume_bounds(v);
+    std::vector<Camera> c{Camera::orbit(0, 0, 2.5, b.center, b.radius),
+                          Camera::orbit(90, 0, 2.5, b.center, b.radius),
+                          Camera::orbit(33, 27, oblique, b.center, b.radius)};
+    Camera o = Camera::orbit(0, 90 - 1e-9, 3, b.center, b.radius);
+    o.projection = Projection::orthographic;
+    o.height = 2 * b.radius;
+    c.push_back(o);
+    return c;
 }
 
 }  // namespace fathom::test

@@ -53,18 +53,8 @@ bool same_pixels(const Image& a, const Image& b) {
            std::memcmp(a.rgba.data(), b.rgba.data(), sizeof(float) * a.rgba.size()) == 0;
 }
 
-// Cameras including axis-aligned views (rays along macrocell faces) and an
-// orthographic one.
 std::vector<Camera> cameras(const Volume& v) {
-    const Bounds b = volume_bounds(v);
-    std::vector<Camera> c{Camera::orbit(0, 0, 2.5, b.center, b.radius),
-                          Camera::orbit(90, 0, 2.5, b.center, b.radius),
-                          Camera::orbit(33, 27, 2.2, b.center, b.radius)};
-    Camera o = Camera::orbit(0, 90 - 1e-9, 3, b.center, b.radius);
-    o.projection = Projection::orthographic;
-    o.height = 2 * b.radius;
-    c.push_back(o);
-    return c;
+    return fathom::test::comparison_cameras(v);
 }
 
 RenderSettings base(IntegratorKind k, Model m, Order o) {

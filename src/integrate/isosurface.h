@@ -11,18 +11,41 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "fathom/render.h"
 
+#include "integrate/projection.h"
 #include "integrate/ray_span.h"
+#include "integrate/simd_classify.h"
+#include "render/empty_space.h"
 #include "render/medium.h"
 #include "render/shading.h"
 
 namespace fathom {
 
+/// The interval of scalars [lo, hi] on the same side of every iso-value as
+/// v (x < iso exactly where v < iso), for skipping: samples in it cross
+/// none between them or with v.
+inline std::array<double, 2> iso_interval(const std::vector<IsoSurface>& isos, double v) {
+    double lo = -INFINITY, hi = INFINITY;
+    for (const IsoSurface& iso : isos) {
+        if (v < iso.value) hi = std::min(hi, std::nextafter(iso.value, -INFINITY));
+        if (!(v < iso.value)) lo = std::max(lo, iso.value);
+    }
+    return {lo, hi};
+}
+
+/// The isosurfaces along one ray. The ends 1 .. n − 1 are interpolated
+/// kBatch at a time (scalar_ends: GridSampler's bits), the last at t_far.
+/// With macrocell ranges, a batch of ends whose macrocells all lie on the
+/// same side of every iso-value as the end before it is skipped: no
+/// crossing lies between them, and the test of the next pair needs only
+/// the side of the end before it, which is that end's.
 template <class V>
 RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const RenderSettings& s, double h,
-                            const Rgb& bg, const ShadeSetup& shade) {
+                            const Rgb& bg, const ShadeSetup& shade, const simd::BatchSource* simd = nullptr,
+                            const MacrocellRanges* ranges = nullptr) {
     const std::int64_t n = segment_count(sp.length(), h);
     const double delta = sp.length() / static_cast<double>(n);
     const auto& isos = s.isosurfaces;
@@ -40,9 +63,8 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
     RayResult r;
     double T = 1.0, weighted = 0.0;  // Σ T·a·t for the expected depth
     double ta = sp.t_near, fa = f(ta);
-    for (std::int64_t j = 1; j <= n; ++j) {
-        const double tb = j == n ? sp.t_far : sp.t_near + static_cast<double>(j) * delta;
-        const double fb = f(tb);
+    // The segment from (ta, fa) to the end at tb: true once the ray stops.
+    auto segment = [&](double tb, double fb) {
         std::array<Hit, 16> hits{};
         std::size_t nh = 0;
         for (std::size_t k = 0; k < isos.size() && k < hits.size(); ++k) {
@@ -72,12 +94,29 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
             if (T < s.termination) {
                 r.alpha = 1.0 - T;
                 r.depth = weighted / r.alpha;
-                return r;
+                return true;
             }
         }
         ta = tb;
         fa = fb;
+        return false;
+    };
+    alignas(64) double ends[simd::kBatch];
+    for (std::int64_t j0 = 1; j0 < n; j0 += simd::kBatch) {
+        const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0));
+        const double t1 = sp.t_near + static_cast<double>(j0 + count - 1) * delta;
+        if (ranges != nullptr) {
+            const auto [lo, hi] = iso_interval(isos, fa);
+            if (ranges->within(sp.at(sp.t_near + static_cast<double>(j0) * delta), sp.at(t1), lo, hi)) {
+                ta = t1;  // fa keeps its side, which is every skipped end's
+                continue;
+            }
+        }
+        scalar_ends(med, sp, delta, simd, j0, count, ends);
+        for (int l = 0; l < count; ++l)
+            if (segment(sp.t_near + static_cast<double>(j0 + l) * delta, ends[l])) return r;
     }
+    if (segment(sp.t_far, f(sp.t_far))) return r;
     for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];
     r.alpha = 1.0 - T;
     if (r.alpha > 0.0) r.depth = weighted / r.alpha;

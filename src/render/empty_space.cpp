@@ -13,20 +13,18 @@
 namespace fathom {
 namespace {
 
-/// Classifies every macrocell of component 0 of `v` by its node range:
-/// 1 where empty(lo, hi) (never with a NaN node), 0 elsewhere; macrocell
-/// rows spread over threads. One byte per macrocell: the ranges are not
-/// kept (on the bunny at 4³ cells they would be 36 MB). For each macrocell
-/// row, the node rows it spans are reduced column by column, in the sample
-/// type (conversion to double keeps order, so the range is the same), and
-/// then each macrocell's window of columns.
-template <class Empty>
-std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
-                                              int shift, int threads, const Empty& empty) {
+/// Calls store(i, lo, hi, nan) for every macrocell i (index order) of
+/// component 0 of `v`, with the range [lo, hi] of its nodes and whether
+/// one of them is NaN (left out of the range); macrocell rows spread over
+/// threads. For each macrocell row, the node rows it spans are reduced
+/// column by column, in the sample type (conversion to double keeps order,
+/// so the range is the same), and then each macrocell's window of columns.
+template <class Store>
+void reduce_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md, int shift, int threads,
+                       const Store& store) {
     const std::int64_t cells = std::int64_t{1} << shift;
     const auto& n = v.dims();
     const std::int64_t comps = v.components();
-    std::vector<std::uint8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
     visit_dtype(v.dtype(), [&]<class T>(T*) {
         constexpr bool kFloat = std::is_floating_point_v<T>;
         constexpr T kLo = kFloat ? std::numeric_limits<T>::infinity() : std::numeric_limits<T>::max();
@@ -72,10 +70,22 @@ std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<
                     b = std::max(b, hi[c]);
                     if constexpr (kFloat) has_nan |= nan[c] != 0;
                 }
-                const bool e = !has_nan && empty(static_cast<double>(a), static_cast<double>(b));
-                out[static_cast<std::size_t>(mx + md[0] * r)] = e ? 1 : 0;
+                store(static_cast<std::size_t>(mx + md[0] * r), static_cast<double>(a),
+                      static_cast<double>(b), has_nan);
             }
         });
+    });
+}
+
+/// Classifies every macrocell by its node range: 1 where empty(lo, hi)
+/// (never with a NaN node), 0 elsewhere. One byte per macrocell: the
+/// ranges are not kept (on the bunny at 4³ cells they would be 36 MB).
+template <class Empty>
+std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<std::int64_t, 3>& md,
+                                              int shift, int threads, const Empty& empty) {
+    std::vector<std::uint8_t> out(static_cast<std::size_t>(md[0] * md[1] * md[2]));
+    reduce_macrocells(v, md, shift, threads, [&](std::size_t i, double lo, double hi, bool nan) {
+        out[i] = !nan && empty(lo, hi) ? 1 : 0;
     });
     return out;
 }
@@ -88,13 +98,52 @@ std::array<std::int64_t, 3> macro_dims(const Volume& v, int shift) {
 
 }  // namespace
 
+MacrocellLattice::MacrocellLattice(const Volume& v, int shift)
+    : shift_(shift), nodes_(v.dims()), dims_(macro_dims(v, shift)) {
+    for (int a = 0; a < 3; ++a) node_hi_[a] = static_cast<double>(nodes_[a] - 1);
+}
+
+namespace {
+
+/// An integer below 2^52 in magnitude: its last significand bit is 0.
+bool even_integer(double x) {
+    return std::abs(x) < 0x1p52 && x == std::floor(x);
+}
+
+/// x as a float, rounded down or up.
+float down(double x) {
+    const auto f = static_cast<float>(x);
+    return static_cast<double>(f) <= x ? f : std::nextafter(f, -INFINITY);
+}
+float up(double x) {
+    const auto f = static_cast<float>(x);
+    return static_cast<double>(f) >= x ? f : std::nextafter(f, INFINITY);
+}
+
+}  // namespace
+
+MacrocellRanges::MacrocellRanges(const Volume& v, int shift, int threads) : MacrocellLattice(v, shift) {
+    range_.resize(static_cast<std::size_t>(2 * dims_[0] * dims_[1] * dims_[2]));
+    reduce_macrocells(v, dims_, shift, threads, [&](std::size_t i, double lo, double hi, bool nan) {
+        const double margin = 0x1p-40 * std::max(std::abs(lo), std::abs(hi));
+        const bool open = nan || !std::isfinite(margin);  // a NaN or an infinite node: no bound
+        // Where the nodes are ≥ 0, each lerp a + f·(b − a) stays ≥ 0 (b − a
+        // rounds to no less than −a) and ≤ hi if hi is an integer (a + (b − a)
+        // exceeds hi by half an ulp of hi at most, a tie that rounds to the
+        // even hi); the same mirrored where the nodes are ≤ 0. Elsewhere
+        // rounding can leave the nodes' range: nodes 1500, 1501 and −1024
+        // give −1024 − 2^−42 at fx = 3·2^−42, fy = 1 (MacrocellRanges test).
+        const bool exact_lo = lo == 0.0 || (hi <= 0.0 && even_integer(lo));
+        const bool exact_hi = hi == 0.0 || (lo >= 0.0 && even_integer(hi));
+        range_[2 * i] = open ? -INFINITY : down(exact_lo ? lo : lo - margin);
+        range_[2 * i + 1] = open ? INFINITY : up(exact_hi ? hi : hi + margin);
+    });
+}
+
 template <class Empty>
 EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empty&& empty) {
     EmptySpace es;
-    es.shift_ = shift;
-    es.nodes_ = v.dims();
-    for (int a = 0; a < 3; ++a) es.node_hi_[a] = static_cast<double>(es.nodes_[a] - 1);
-    es.dims_ = macro_dims(v, shift);
+    static_cast<MacrocellLattice&>(es) = MacrocellLattice(v, shift);
     es.empty_ = classify_macrocells(v, es.dims_, shift, threads, empty);
     es.any_ = std::find(es.empty_.begin(), es.empty_.end(), std::uint8_t{1}) != es.empty_.end();
     es.find_border();

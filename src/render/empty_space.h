@@ -94,7 +94,35 @@ struct PixelBounds {
     }
 };
 
-class EmptySpace {
+/// The macrocells of a lattice: c³ cells each (c = 2^shift), the last ones
+/// per axis clipped; the cell of a position is the one GridSampler picks.
+class MacrocellLattice {
+public:
+    MacrocellLattice() = default;
+    MacrocellLattice(const Volume& v, int shift);
+    /// Macrocells per axis.
+    [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
+    /// The macrocell of a position, the cell chosen as GridSampler picks it.
+    [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
+        return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
+    }
+
+protected:
+    [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
+        return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
+    }
+    [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
+        const double x = std::clamp(p, 0.0, node_hi_[a]);
+        return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
+    }
+
+    int shift_ = 3;
+    std::array<std::int64_t, 3> nodes_{};
+    std::array<double, 3> node_hi_{};     // nodes_ − 1
+    std::array<std::int64_t, 3> dims_{};  // macrocells per axis
+};
+
+class EmptySpace : public MacrocellLattice {
 public:
     EmptySpace() = default;
     /// A scalar volume classified by `tf` under model `m`, macrocells of
@@ -130,13 +158,7 @@ public:
 
     /// The cap of distance_ahead.
     static constexpr int kMaxDistance = 255;
-    /// Macrocells per axis.
-    [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
 
-    /// The macrocell of a position, the cell chosen as GridSampler picks it.
-    [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
-        return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
-    }
     [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m) const {
         return empty_[index(m)] != 0;
     }
@@ -185,20 +207,9 @@ private:
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     void build_ahead(int o, std::vector<std::uint8_t>& out) const;
     void find_border();
-    [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
-        return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
-    }
-    [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
-        const double x = std::clamp(p, 0.0, node_hi_[a]);
-        return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
-    }
 
-    int shift_ = 3;
-    std::array<std::int64_t, 3> nodes_{};
-    std::array<double, 3> node_hi_{};     // nodes_ − 1
-    std::array<std::int64_t, 3> dims_{};  // macrocells per axis
-    std::vector<std::uint8_t> empty_;     // per macrocell: 1 where empty
-    struct Octants {                      // distance_ahead per octant, built once on demand
+    std::vector<std::uint8_t> empty_;  // per macrocell: 1 where empty
+    struct Octants {                   // distance_ahead per octant, built once on demand
         std::array<std::once_flag, 8> once;
         std::array<std::vector<std::uint8_t>, 8> grid;
     };
@@ -206,6 +217,68 @@ private:
     std::vector<std::uint32_t> border_;  // non-empty macrocells next to an empty one or the grid's edge
     bool any_ = false;
     bool joins_empty_ = false;
+};
+
+/// The node range of every macrocell, widened by a margin for rounding, for
+/// skipping where a ray's result depends on the scalar's range alone (mip,
+/// minip, isosurfaces): every trilinear sample GridSampler computes in a
+/// macrocell lies in its [lo, hi] (a NaN node makes it [−∞, +∞]). The
+/// range [a, b] of the nodes is widened by 2^−40·max(|a|, |b|) on each side
+/// where rounding may leave it: a trilinear value is a convex combination
+/// of its cell's corners, and its three levels of rounding move it by a few
+/// ulps of that at most. Not where they cannot: a = 0, or b an integer
+/// with every node ≥ 0 (mirrored: b = 0, or a an integer with every node
+/// ≤ 0), so that a ray whose largest sample is such a bound still skips.
+class MacrocellRanges : public MacrocellLattice {
+public:
+    MacrocellRanges() = default;
+    MacrocellRanges(const Volume& v, int shift, int threads);
+
+    /// True when every macrocell in the box from a's macrocell to b's has
+    /// its range in [lo, hi]: then so has every sample at a position
+    /// between a and b on each axis (a ray's samples between two of its
+    /// samples, whose computed positions are monotone per axis).
+    [[nodiscard]] bool within(const Vec3& a, const Vec3& b, double lo, double hi) const {
+        return box(a, b, [&](const float* r) { return r[0] >= lo && r[1] <= hi; });
+    }
+    /// The smallest lo and largest hi over the box from a's macrocell to
+    /// b's: every sample at a position between a and b lies in between.
+    [[nodiscard]] std::array<double, 2> bounds(const Vec3& a, const Vec3& b) const {
+        std::array<double, 2> out{INFINITY, -INFINITY};
+        box(a, b, [&](const float* r) {
+            out[0] = std::min(out[0], static_cast<double>(r[0]));
+            out[1] = std::max(out[1], static_cast<double>(r[1]));
+            return true;
+        });
+        return out;
+    }
+    /// The widened range of the macrocell holding p (tests).
+    [[nodiscard]] std::array<double, 2> range(const Vec3& p) const {
+        const std::size_t i = 2 * index(macrocell(p));
+        return {range_[i], range_[i + 1]};
+    }
+
+private:
+    /// f(range) for each macrocell of the box from a's macrocell to b's
+    /// until it returns false; true when none did.
+    template <class F>
+    FATHOM_INLINE bool box(const Vec3& a, const Vec3& b, F&& f) const {
+        const auto ma = macrocell(a), mb = macrocell(b);
+        std::array<std::int64_t, 3> m0{}, m1{};
+        for (int k = 0; k < 3; ++k) {
+            m0[k] = std::min(ma[k], mb[k]);
+            m1[k] = std::max(ma[k], mb[k]);
+        }
+        for (std::int64_t z = m0[2]; z <= m1[2]; ++z)
+            for (std::int64_t y = m0[1]; y <= m1[1]; ++y) {
+                const float* r = range_.data() + 2 * index({m0[0], y, z});
+                for (std::int64_t x = m0[0]; x <= m1[0]; ++x, r += 2)
+                    if (!f(r)) return false;
+            }
+        return true;
+    }
+
+    std::vector<float> range_;  // lo, hi per macrocell, as floats rounded outwards
 };
 
 /// Sample positions on the segment grid: index j sits at

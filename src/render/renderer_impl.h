@@ -29,6 +29,7 @@ struct Renderer::Impl {
     double h = 0;  // step in world units
     Rgb bg{};
     EmptySpace empty_space;
+    MacrocellRanges ranges;  // mip, minip and isosurfaces
     simd::FlatFunction flat_sigma, flat_color;
     simd::BatchSource batch;                  // batch.data == nullptr: no SIMD
     std::vector<std::uint32_t> active_cells;  // batch.active
@@ -46,6 +47,11 @@ struct Renderer::Impl {
     /// The macrocells to skip, or nullptr when skipping is off or useless.
     [[nodiscard]] const EmptySpace* skipper() const {
         return s.skip_empty && empty_space.any() ? &empty_space : nullptr;
+    }
+
+    /// The macrocell ranges to skip by, or nullptr when skipping is off.
+    [[nodiscard]] const MacrocellRanges* ranger() const {
+        return s.skip_empty && ranges.dims()[0] > 0 ? &ranges : nullptr;
     }
 
     /// The ray's span inside the volume, cropped and clipped; false when

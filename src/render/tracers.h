@@ -5,6 +5,7 @@
 #include "integrate/alpha.h"
 #include "integrate/isosurface.h"
 #include "integrate/preintegrated.h"
+#include "integrate/projection.h"
 #include "integrate/reference.h"
 #include "integrate/riemann.h"
 #include "render/medium.h"
@@ -60,27 +61,13 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     throw Error("integrator", "unknown integrator");
 }
 
-// Projection modes over the scalar at the n + 1 segment ends: mip (eq. (23),
-// the largest), minip (the smallest), average (the trapezoidal mean along the
-// ray, exact where v is linear along it); I = c(v) (q(v) for an emission TF),
-// α = 1 where the ray meets the box.
+// Projection modes over the scalar at the n + 1 segment ends (projection.h).
 template <Model M, class T>
 Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const double h = im.h;
-    return [med, h](const RaySpan& sp) {
-        const std::int64_t n = segment_count(sp.length(), h);
-        const double delta = sp.length() / static_cast<double>(n);
-        const double first = med.scalar(sp.at(sp.t_near));
-        double v = M == Model::average ? 0.5 * first : first;
-        for (std::int64_t i = 1; i <= n; ++i) {
-            const double s = med.scalar(sp.at(sp.t_near + static_cast<double>(i) * delta));
-            if constexpr (M == Model::mip) v = std::max(v, s);
-            if constexpr (M == Model::minip) v = std::min(v, s);
-            if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
-        }
-        if constexpr (M == Model::average) v /= static_cast<double>(n);
-        return RayResult{med.tf->color(v), 1.0};
-    };
+    const simd::BatchSource* simd = im.batch.data != nullptr ? &im.batch : nullptr;
+    const MacrocellRanges* ranges = im.ranger();
+    return [med, h, simd, ranges](const RaySpan& sp) { return project<M>(med, sp, h, simd, ranges); };
 }
 
 template <class Medium>
@@ -107,8 +94,10 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
                 const double h = im.h;
                 const Rgb bg = im.bg;
                 const ShadeSetup* shade = &im.shade;
-                return [med, s, h, bg, shade](const RaySpan& sp) {
-                    return trace_isosurfaces(med, sp, s, h, bg, *shade);
+                const simd::BatchSource* simd = im.batch.data != nullptr ? &im.batch : nullptr;
+                const MacrocellRanges* ranges = im.ranger();
+                return [med, s, h, bg, shade, simd, ranges](const RaySpan& sp) {
+                    return trace_isosurfaces(med, sp, s, h, bg, *shade, simd, ranges);
                 };
             }
             break;

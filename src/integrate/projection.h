@@ -1,0 +1,102 @@
+// The projection models over the scalar at the n + 1 segment ends of
+// eq. (8): mip (eq. (23), the largest), minip (the smallest) and average
+// (the trapezoidal mean along the ray, exact where v is linear along it);
+// I = c(v) (q(v) for an emission transfer function), α = 1 where the ray
+// meets the box.
+//
+// The ends are interpolated kBatch at a time (simd::interpolate_batch,
+// GridSampler's bits) and folded in order, so the result is the scalar
+// loop's bit for bit. With macrocell ranges, mip and minip skip a batch
+// whose ends all lie in macrocells that cannot beat the value so far:
+// samples no larger (mip) or no smaller (minip) leave it unchanged.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "fathom/render.h"
+
+#include "integrate/ray_span.h"
+#include "integrate/simd_classify.h"
+#include "render/empty_space.h"
+#include "render/medium.h"
+
+namespace fathom {
+
+/// The scalar at segment ends j0 .. j0 + count − 1 (end j at
+/// t_near + j·δ) into out[0 .. count − 1]: a batch with `simd`, else
+/// GridSampler one at a time.
+template <class T>
+void scalar_ends(const ScalarMedium<T>& med, const RaySpan& sp, double delta, const simd::BatchSource* simd,
+                 std::int64_t j0, int count, double* out) {
+    if (simd != nullptr) {
+        const simd::RayGrid rg{sp.p0, sp.dp, sp.t_near, delta, 0.0, 0};
+        simd::interpolate_batch(*simd, rg, j0, count, out);
+        return;
+    }
+    for (int l = 0; l < count; ++l)
+        out[l] = med.scalar(sp.at(sp.t_near + static_cast<double>(j0 + l) * delta));
+}
+
+template <Model M, class T>
+RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const simd::BatchSource* simd,
+                  const MacrocellRanges* ranges) {
+    static_assert(M == Model::mip || M == Model::minip || M == Model::average);
+    const std::int64_t n = segment_count(sp.length(), h);
+    const double delta = sp.length() / static_cast<double>(n);
+    alignas(64) double ends[simd::kBatch];
+    double v = 0;
+    // Batch b: ends b·kBatch .. its last (b = 0 first, in order: v starts at end 0).
+    auto fold = [&](std::int64_t b) {
+        const std::int64_t j0 = b * simd::kBatch;
+        const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0 + 1));
+        scalar_ends(med, sp, delta, simd, j0, count, ends);
+        for (int l = 0; l < count; ++l) {
+            const std::int64_t i = j0 + l;
+            const double s = ends[l];
+            if (i == 0) {
+                v = M == Model::average ? 0.5 * s : s;
+                continue;
+            }
+            if constexpr (M == Model::mip) v = std::max(v, s);
+            if constexpr (M == Model::minip) v = std::min(v, s);
+            if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
+        }
+    };
+    const std::int64_t batches = n / simd::kBatch + 1;
+    if (M == Model::average || ranges == nullptr) {
+        for (std::int64_t b = 0; b < batches; ++b) fold(b);
+    } else {
+        // Best first: after batch 0, the batch whose macrocells could hold
+        // the most extreme sample, until none can beat v. The largest (or
+        // smallest) of a set does not depend on the order it is taken in
+        // (a NaN at end 0 stays, later ones never win).
+        thread_local std::vector<double> bound;
+        bound.resize(static_cast<std::size_t>(batches));
+        for (std::int64_t b = 1; b < batches; ++b) {
+            const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch - 1, n);
+            const auto r = ranges->bounds(sp.at(sp.t_near + static_cast<double>(j0) * delta),
+                                          sp.at(sp.t_near + static_cast<double>(j1) * delta));
+            bound[static_cast<std::size_t>(b)] = M == Model::mip ? r[1] : -r[0];
+        }
+        fold(0);
+        for (;;) {
+            std::size_t best = 0;  // none
+            double most = M == Model::mip ? v : -v;
+            for (std::size_t b = 1; b < bound.size(); ++b)
+                if (bound[b] > most) {
+                    most = bound[b];
+                    best = b;
+                }
+            if (best == 0) break;
+            fold(static_cast<std::int64_t>(best));
+            bound[best] = -INFINITY;
+        }
+    }
+    if constexpr (M == Model::average) v /= static_cast<double>(n);
+    return RayResult{med.tf->color(v), 1.0};
+}
+
+}  // namespace fathom

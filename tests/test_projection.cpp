@@ -1,0 +1,203 @@
+// Skipping for the models whose result depends on the scalar's range alone
+// (src/integrate/projection.h, isosurface.h, MacrocellRanges in
+// render/empty_space.h): the ranges hold every sample GridSampler computes,
+// and mip, minip, average and isosurface images are bit-identical with
+// skipping and SIMD batches on and off.
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "fathom/render.h"
+
+#include "render/empty_space.h"
+#include "synthetic.h"
+#include "volume/sampler.h"
+
+using namespace fathom;
+using fathom::test::extinction_tf;
+
+namespace {
+
+/// Plateaus, ramps and noise: v = round(A·(blobs + noise)) + offset in
+/// `type`, so that many rays share their largest and smallest samples with
+/// the nodes (the bounds skipping compares against).
+Volume lumpy(DType type, double scale, double offset, std::uint32_t seed) {
+    const std::array<std::int64_t, 3> n{37, 29, 45};
+    Volume v(n, type);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> noise(-0.15, 0.15);
+    for (std::int64_t k = 0; k < n[2]; ++k)
+        for (std::int64_t j = 0; j < n[1]; ++j)
+            for (std::int64_t i = 0; i < n[0]; ++i) {
+                auto blob = [&](double cx, double cy, double cz, double r) {
+                    const double d = std::hypot(static_cast<double>(i) - cx, static_cast<double>(j) - cy,
+                                                static_cast<double>(k) - cz);
+                    return std::max(0.0, 1.0 - d / r);
+                };
+                double x =
+                    std::min(1.0, 1.6 * blob(10, 9, 12, 8) + blob(26, 18, 30, 10) + blob(18, 22, 38, 5));
+                if (i % 7 != 0) x += noise(rng) * x;  // plateaus at 0 and 1 stay
+                x = x * scale + offset;
+                v.set_value(i, j, k, type == DType::f32 ? x : std::round(x));
+            }
+    v.set_spacing({1.0, 1.5, 0.8});
+    return v;
+}
+
+struct Case {
+    const char* name;
+    Volume volume;
+};
+
+std::vector<Case> volumes() {
+    std::vector<Case> c;
+    c.push_back({"u8", lumpy(DType::u8, 255, 0, 1)});
+    c.push_back({"i16 signed", lumpy(DType::i16, 3000, -1024, 2)});
+    c.push_back({"f32", lumpy(DType::f32, 2.5, -0.5, 3)});
+    return c;
+}
+
+std::vector<Camera> cameras(const Volume& v) {
+    return fathom::test::comparison_cameras(v, 1.2);
+}
+
+bool same(const Image& a, const Image& b) {
+    auto eq = [](const std::vector<float>& x, const std::vector<float>& y) {
+        return x.size() == y.size() && std::memcmp(x.data(), y.data(), sizeof(float) * x.size()) == 0;
+    };
+    return eq(a.rgba, b.rgba) && eq(a.depth, b.depth) && eq(a.first_hit, b.first_hit);
+}
+
+/// Renders with skipping and SIMD on and off (four images per camera);
+/// returns how many differ from the plain scalar loop's.
+int compare(const Volume& v, const TransferFunction& tf, RenderSettings s, double step) {
+    s.width = 48;
+    s.height = 40;
+    s.threads = 2;
+    s.step = step;
+    s.depth_outputs = true;
+    int bad = 0;
+    for (const Camera& cam : cameras(v)) {
+        s.skip_empty = false;
+        s.simd = false;
+        const Image plain = Renderer(v, tf, s).render(cam);
+        for (int variant = 1; variant < 4; ++variant) {
+            s.skip_empty = (variant & 1) != 0;
+            s.simd = (variant & 2) != 0;
+            if (!same(Renderer(v, tf, s).render(cam), plain)) ++bad;
+        }
+    }
+    return bad;
+}
+
+TransferFunction ramp_tf(const Volume& v) {
+    const auto [lo, hi] = v.value_range();
+    TransferFunction tf = extinction_tf({{lo, 0.0}, {hi, 1.0}}, {1, 1, 1});
+    tf.color_points = {{lo, {0.1, 0.2, 0.9}}, {0.5 * (lo + hi), {0.9, 0.5, 0.1}}, {hi, {1, 1, 0.6}}};
+    return tf;
+}
+
+}  // namespace
+
+// Every sample GridSampler computes, at random positions and at the
+// fractions and lattice planes where rounding is tightest, lies in its
+// macrocell's range; where the nodes are all ≥ 0 the upper bound is the
+// largest node and a lower bound of 0 stays 0, not widened.
+TEST(MacrocellRanges, HoldEverySampleAndAreTightWhereRoundingCannotLeaveThem) {
+    std::mt19937 rng(11);
+    int checked = 0;
+    for (const Case& c : volumes())
+        for (int shift : {1, 2, 3}) {
+            const Volume& v = c.volume;
+            const MacrocellRanges r(v, shift, 2);
+            const auto& n = v.dims();
+            visit_dtype(v.dtype(), [&]<class T>(T*) {
+                const GridSampler<T> g(v);
+                const double fractions[] = {0.0, 0x1p-50, 3 * 0x1p-42, 0.5, 1 - 0x1p-53, 1.0};
+                std::uniform_real_distribution<double> u(0.0, 1.0);
+                for (int k = 0; k < 20000; ++k) {
+                    Vec3 p;
+                    for (int a = 0; a < 3; ++a) {
+                        const double hi = static_cast<double>(n[a] - 1);
+                        const int pick = k % 9;  // random, a special fraction, or the last plane
+                        const double cell = std::floor(u(rng) * hi);
+                        p[a] = pick < 5 ? u(rng) * hi : pick < 8 ? std::min(hi, cell + fractions[k % 6]) : hi;
+                    }
+                    const double s = g(p);
+                    const auto range = r.range(p);
+                    ASSERT_LE(range[0], s) << c.name << " shift " << shift;
+                    ASSERT_LE(s, range[1]) << c.name << " shift " << shift;
+                    ++checked;
+                }
+            });
+        }
+    EXPECT_GT(checked, 100000);
+    // u8: every node ≥ 0, so the ranges are the nodes' own [min, max]
+    const Volume v = volumes()[0].volume;
+    const MacrocellRanges r(v, 2, 1);
+    double lo = INFINITY, hi = -INFINITY;
+    for (std::int64_t k = 0; k <= 4; ++k)
+        for (std::int64_t j = 0; j <= 4; ++j)
+            for (std::int64_t i = 0; i <= 4; ++i) {
+                lo = std::min(lo, v.value(i + 8, j + 4, k + 12));
+                hi = std::max(hi, v.value(i + 8, j + 4, k + 12));
+            }
+    const auto got = r.range({9.5, 5.5, 13.5});  // macrocell (2, 1, 3): nodes 8..12, 4..8, 12..16
+    EXPECT_LE(got[0], lo);
+    EXPECT_EQ(got[1], hi);  // not widened
+    EXPECT_LT(0.0, lo);
+    EXPECT_LT(lo, hi);
+    // a macrocell whose smallest node is 0 keeps 0 as its lower bound
+    EXPECT_EQ(v.value(36, 28, 44), 0.0);
+    EXPECT_EQ(r.range({35.5, 27.5, 43.5})[0], 0.0);
+}
+
+// Where the nodes have both signs a sample can leave their range: nodes
+// 1500, 1501 and −1024 give −1024 − 2^−42 at fx = 3·2^−42, fy = 1. The
+// range is widened to hold it.
+TEST(MacrocellRanges, MixedSignsAreWidened) {
+    Volume v({2, 2, 2}, DType::i16);
+    for (std::int64_t k = 0; k < 2; ++k) {
+        v.set_value(0, 0, k, 1500);
+        v.set_value(1, 0, k, 1501);
+        v.set_value(0, 1, k, -1024);
+        v.set_value(1, 1, k, -1024);
+    }
+    const Vec3 p{3 * 0x1p-42, 1.0, 0.25};
+    const double s = GridSampler<std::int16_t>(v)(p);
+    EXPECT_EQ(s, -1024 - 0x1p-42);  // below every node
+    const MacrocellRanges r(v, 2, 1);
+    EXPECT_LE(r.range(p)[0], s);
+    EXPECT_GE(r.range(p)[1], 1501.0);
+}
+
+TEST(Projection, ImagesAreBitIdenticalWithAndWithoutSkippingAndSimd) {
+    for (const Case& c : volumes())
+        for (Model m : {Model::mip, Model::minip, Model::average})
+            for (double step : {0.5, 1.3}) {
+                RenderSettings s;
+                s.model = m;
+                EXPECT_EQ(compare(c.volume, ramp_tf(c.volume), s, step), 0)
+                    << c.name << " " << to_string(m) << " step " << step;
+            }
+}
+
+// One opaque surface, and two translucent ones of which one sits on a
+// node value (plateaus): the hits, depths and first hits agree bit for bit.
+TEST(Projection, IsosurfacesAreBitIdenticalWithAndWithoutSkippingAndSimd) {
+    for (const Case& c : volumes()) {
+        const auto [lo, hi] = c.volume.value_range();
+        const double plateau = c.volume.value(0, 0, 0);  // 0 (scaled): far from the blobs
+        for (double step : {0.5, 1.3}) {
+            RenderSettings s;
+            s.model = Model::isosurface;
+            s.isosurfaces = {{lo + 0.4 * (hi - lo), {1, 0.8, 0.6}, 1.0}};
+            EXPECT_EQ(compare(c.volume, ramp_tf(c.volume), s, step), 0) << c.name << " opaque, step " << step;
+            s.isosurfaces = {{lo + 0.7 * (hi - lo), {0.2, 1, 0.2}, 0.6},
+                             {std::nextafter(plateau, INFINITY), {1, 0.2, 0.2}, 0.3}};
+            EXPECT_EQ(compare(c.volume, ramp_tf(c.volume), s, step), 0) << c.name << " two, step " << step;
+        }
+    }
+}
