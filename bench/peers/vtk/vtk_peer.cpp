@@ -60,7 +60,7 @@ struct UsageError : std::runtime_error {
 };
 
 struct Args {
-    std::string scene, volume, tf, preset, orbit, step_unit;
+    std::string scene, volume, tf, preset, orbit, step_unit, model;
     int width = 0, height = 0, threads = 0;
     double step = 0, termination = 0;
     int frames = 5;
@@ -135,10 +135,16 @@ fathom::Scene load_scene(const Args& a) {
     if (a.o_threads->count()) s.threads = a.threads;
     if (a.o_termination->count()) s.termination = a.termination;
     if (a.shade) s.shading.enabled = true;
+    if (!a.model.empty()) s.model = fathom::parse_model(a.model, "--model");
     if (s.shading.enabled && !s.shading.lights.empty())
         throw UsageError("the scene's lights have no counterpart here (both sides use a head light)");
     s.validate();
     return sc;
+}
+
+/// mip and minip: VTK's maximum and minimum intensity blend modes.
+bool projection(fathom::Model m) {
+    return m == fathom::Model::mip || m == fathom::Model::minip;
 }
 
 // One fathom renderer and its frame times.
@@ -149,7 +155,8 @@ struct FathomSide {
     fathom::Image last;
 
     FathomSide(const fathom::Scene& sc, const fathom::RenderSettings& s)
-        : integrator(fathom::to_string(s.integrator)), renderer(sc.volume, sc.tf, s) {}
+        : integrator(projection(s.model) ? fathom::to_string(s.model) : fathom::to_string(s.integrator)),
+          renderer(sc.volume, sc.tf, s) {}
     double render(const fathom::Camera& cam) {
         const auto t0 = Clock::now();
         last = renderer.render(cam);
@@ -239,7 +246,12 @@ struct VtkTransfer {
     bool clamped_color = false;
 };
 
-VtkTransfer to_vtk_transfer(const fathom::Volume& v, const fathom::Classifier& cls, double unit_distance) {
+//
+// mip and minip show c(v) of the extreme scalar with α = 1 (SPEC §1); VTK's
+// intensity blends composite c(v) with opacity o(v) over the background, so
+// there o = 1 everywhere.
+VtkTransfer to_vtk_transfer(const fathom::Volume& v, const fathom::Classifier& cls, double unit_distance,
+                            bool opaque) {
     const auto [lo, hi] = v.value_range();
     const bool integral = v.dtype() != fathom::DType::f32 && v.dtype() != fathom::DType::f64;
     const int n = integral && hi - lo <= 32767 ? static_cast<int>(hi - lo) + 1 : 32768;
@@ -248,7 +260,7 @@ VtkTransfer to_vtk_transfer(const fathom::Volume& v, const fathom::Classifier& c
     t.table_size = n;
     for (int i = 0; i < n; ++i) {
         const double x = n > 1 ? lo + i * (hi - lo) / (n - 1) : lo;
-        op[static_cast<std::size_t>(i)] = 1.0 - std::exp(-cls.sigma(x) * unit_distance);
+        op[static_cast<std::size_t>(i)] = opaque ? 1.0 : 1.0 - std::exp(-cls.sigma(x) * unit_distance);
         const fathom::Rgb c = cls.color(x);
         for (int k = 0; k < 3; ++k) {
             // VTK's tables are 15-bit fixed point in [0, 1]: fathom's bright
@@ -297,7 +309,7 @@ public:
         const fathom::RenderSettings& s = sc.settings;
         image_ = to_vtk_image(sc.volume);
         const fathom::Classifier cls(sc.tf, sc.volume.smallest_spacing());
-        const VtkTransfer tf = to_vtk_transfer(sc.volume, cls, h);
+        const VtkTransfer tf = to_vtk_transfer(sc.volume, cls, h, projection(s.model));
         table_size = tf.table_size;
         clamped_color = tf.clamped_color;
 
@@ -318,7 +330,12 @@ public:
         prop_->IndependentComponentsOn();
 
         mapper_->SetInputData(image_);
-        mapper_->SetBlendModeToComposite();
+        if (s.model == fathom::Model::mip)
+            mapper_->SetBlendModeToMaximumIntensity();
+        else if (s.model == fathom::Model::minip)
+            mapper_->SetBlendModeToMinimumIntensity();
+        else
+            mapper_->SetBlendModeToComposite();
         mapper_->AutoAdjustSampleDistancesOff();         // no frame-rate driven coarsening
         mapper_->LockSampleDistanceToInputSpacingOff();  // keep our sample distance
         mapper_->SetSampleDistance(static_cast<float>(h));
@@ -459,8 +476,10 @@ int run(const Args& a) {
     const fathom::Scene sc = load_scene(a);
     const double load_s = seconds_since(t_load);
     if (sc.preclassified()) throw UsageError("pre-classified (density/color) scenes are not supported");
-    if (sc.settings.model != fathom::Model::emission_absorption)
-        throw UsageError("only the emission-absorption model has a VTK counterpart here");
+    if (sc.settings.model != fathom::Model::emission_absorption && !projection(sc.settings.model))
+        throw UsageError("only the emission-absorption, mip and minip models have a VTK counterpart here");
+    if (projection(sc.settings.model) && sc.settings.shading.enabled)
+        throw UsageError("--shade goes with the emission-absorption model only");
     if (sc.tf.associated)
         throw UsageError("an 'emission' (associated) transfer function has no VTK counterpart here");
 
@@ -480,7 +499,7 @@ int run(const Args& a) {
     s_alpha.threads = threads;
     std::vector<FathomSide> fathom_runs;
     fathom_runs.emplace_back(sc, s_alpha);
-    if (!a.alpha_only && s.integrator != fathom::IntegratorKind::alpha) {
+    if (!a.alpha_only && s.integrator != fathom::IntegratorKind::alpha && !projection(s.model)) {
         fathom::RenderSettings s_default = s;
         s_default.threads = threads;
         fathom_runs.emplace_back(sc, s_default);
@@ -535,13 +554,13 @@ int run(const Args& a) {
     std::printf("  VTK %-25s median %.3f s  min %.3f s  (mapper TimeToDraw: median %.3f s)\n",
                 "FixedPointRayCast", vtk_median, *std::min_element(vtk.seconds.begin(), vtk.seconds.end()),
                 median(vtk.mapper_seconds));
-    std::printf("  ratio VTK median / fathom alpha median = %.2f\n",
+    std::printf("  ratio VTK median / fathom %s median = %.2f\n", fathom_runs[0].integrator.c_str(),
                 vtk_median / median(fathom_runs[0].seconds));
     std::printf(
-        "  last frame, fathom alpha vs VTK, 8-bit: mean |dRGB| %.2f linear levels (%.2f sRGB), %.2f over "
+        "  last frame, fathom %s vs VTK, 8-bit: mean |dRGB| %.2f linear levels (%.2f sRGB), %.2f over "
         "the %.1f %% non-black pixels; %.2f %% of pixels differ by > 10 levels\n",
-        diff.mean_linear, diff.mean_srgb, diff.mean_linear_covered, 100 * diff.covered_fraction,
-        100 * diff.over10_fraction);
+        fathom_runs[0].integrator.c_str(), diff.mean_linear, diff.mean_srgb, diff.mean_linear_covered,
+        100 * diff.covered_fraction, 100 * diff.over10_fraction);
     std::printf("  images: %s, %s (raw framebuffer), %s (sRGB-encoded like fathom's)\n",
                 fathom_png.string().c_str(), vtk_png.string().c_str(), vtk_srgb_png.string().c_str());
     if (vtk.clamped_color) std::printf("  note: colors above 1 were clamped to 1 for VTK\n");
@@ -612,6 +631,8 @@ int main(int argc, char** argv) {
     app.add_flag("--alpha-only", a.alpha_only, "Time fathom's alpha integrator only (not also the scene's)");
     app.add_flag("--shade", a.shade,
                  "Gradient shading on both sides (fathom's Blinn-Phong coefficients; head light)");
+    app.add_option("--model", a.model,
+                   "emission-absorption (default), mip or minip (VTK's maximum / minimum intensity blends)");
     app.add_option("--json", a.json, "Write the figures as JSON to this file");
     app.add_option("--images", a.images, "Prefix of the last-frame PNGs (default vtk_peer)");
     try {
