@@ -63,8 +63,15 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
     RayResult r;
     double T = 1.0, weighted = 0.0;  // Σ T·a·t for the expected depth
     double ta = sp.t_near, fa = f(ta);
+    // The scalars on the same side of every iso-value as fa.
+    std::array<double, 2> side = iso_interval(isos, fa);
     // The segment from (ta, fa) to the end at tb: true once the ray stops.
     auto segment = [&](double tb, double fb) {
+        if (fb >= side[0] && fb <= side[1]) {  // no iso-value crossed
+            ta = tb;
+            fa = fb;
+            return false;
+        }
         std::array<Hit, 16> hits{};
         std::size_t nh = 0;
         for (std::size_t k = 0; k < isos.size() && k < hits.size(); ++k) {
@@ -99,6 +106,7 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         }
         ta = tb;
         fa = fb;
+        side = iso_interval(isos, fa);
         return false;
     };
     alignas(64) double ends[simd::kBatch];
@@ -106,8 +114,8 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0));
         const double t1 = sp.t_near + static_cast<double>(j0 + count - 1) * delta;
         if (ranges != nullptr) {
-            const auto [lo, hi] = iso_interval(isos, fa);
-            if (ranges->within(sp.at(sp.t_near + static_cast<double>(j0) * delta), sp.at(t1), lo, hi)) {
+            if (ranges->within(sp.at(sp.t_near + static_cast<double>(j0) * delta), sp.at(t1), side[0],
+                               side[1])) {
                 ta = t1;  // fa keeps its side, which is every skipped end's
                 continue;
             }
