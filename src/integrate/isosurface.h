@@ -38,14 +38,21 @@ inline std::array<double, 2> iso_interval(const std::vector<IsoSurface>& isos, d
 
 /// The isosurfaces along one ray. The ends 1 .. n − 1 are interpolated
 /// kBatch at a time (scalar_ends: GridSampler's bits), the last at t_far.
-/// With macrocell ranges, a batch of ends whose macrocells all lie on the
-/// same side of every iso-value as the end before it is skipped: no
-/// crossing lies between them, and the test of the next pair needs only
-/// the side of the end before it, which is that end's.
+///
+/// With `es` (EmptySpace::for_isosurfaces), the ray walks its runs of ends
+/// (RunFinder, the pixel bounds included): a run in "empty" macrocells,
+/// where every end lies on the same sides of the iso-values, takes its
+/// first end only (its pair with the end before is tested; the ends after
+/// it cross nothing, and the next pair's test needs only their side, which
+/// is the first's); the other runs are evaluated. This needs each step to
+/// reach a touching macrocell at most (|dp_a|·δ ≤ a macrocell edge less a
+/// cell on every axis); otherwise, or without `es`, with macrocell ranges, a batch of
+/// ends whose macrocells all lie on the same sides as the end before it
+/// is skipped.
 template <class V>
 RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const RenderSettings& s, double h,
                             const Rgb& bg, const ShadeSetup& shade, const simd::BatchSource* simd = nullptr,
-                            const MacrocellRanges* ranges = nullptr) {
+                            const MacrocellRanges* ranges = nullptr, const EmptySpace* es = nullptr) {
     const std::int64_t n = segment_count(sp.length(), h);
     const double delta = sp.length() / static_cast<double>(n);
     const auto& isos = s.isosurfaces;
@@ -110,19 +117,43 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         return false;
     };
     alignas(64) double ends[simd::kBatch];
-    for (std::int64_t j0 = 1; j0 < n; j0 += simd::kBatch) {
-        const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0));
-        const double t1 = sp.t_near + static_cast<double>(j0 + count - 1) * delta;
-        if (ranges != nullptr) {
-            if (ranges->within(sp.at(sp.t_near + static_cast<double>(j0) * delta), sp.at(t1), side[0],
-                               side[1])) {
-                ta = t1;  // fa keeps its side, which is every skipped end's
+    auto t_of = [&](std::int64_t j) { return sp.t_near + static_cast<double>(j) * delta; };
+    // Ends j0 .. j1 evaluated in batches: true once the ray stops.
+    auto evaluate = [&](std::int64_t j0, std::int64_t j1) {
+        for (; j0 <= j1; j0 += simd::kBatch) {
+            const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, j1 - j0 + 1));
+            scalar_ends(med, sp, delta, simd, j0, count, ends);
+            for (int l = 0; l < count; ++l)
+                if (segment(t_of(j0 + l), ends[l])) return true;
+        }
+        return false;
+    };
+    // a step of at most a macrocell edge less one cell along every axis:
+    // the computed positions of two consecutive ends then lie in touching
+    // macrocells (a step of exactly an edge, rounded, can pass one)
+    const double edge = es != nullptr ? static_cast<double>(es->edge() - 1) : 0.0;
+    if (es != nullptr && std::abs(sp.dp.x * delta) <= edge && std::abs(sp.dp.y * delta) <= edge &&
+        std::abs(sp.dp.z * delta) <= edge) {
+        const RunFinder runs(*es, SampleGrid{&sp, delta, 0.0, 0});  // end j at t_near + j·δ
+        for (std::int64_t j = 1; j < n;) {
+            const RunFinder::Run run = runs.run_through(j, +1, n - 1);
+            if (run.empty) {
+                if (segment(t_of(j), f(t_of(j)))) return r;
+                if (run.last > j) ta = t_of(run.last);  // fa keeps its side, which is every skipped end's
+            } else if (evaluate(j, run.last)) {
+                return r;
+            }
+            j = run.last + 1;
+        }
+    } else {
+        for (std::int64_t j0 = 1; j0 < n; j0 += simd::kBatch) {
+            const std::int64_t j1 = std::min(j0 + simd::kBatch - 1, n - 1);
+            if (ranges != nullptr && ranges->within(sp.at(t_of(j0)), sp.at(t_of(j1)), side[0], side[1])) {
+                ta = t_of(j1);  // fa keeps its side, which is every skipped end's
                 continue;
             }
+            if (evaluate(j0, j1)) return r;
         }
-        scalar_ends(med, sp, delta, simd, j0, count, ends);
-        for (int l = 0; l < count; ++l)
-            if (segment(sp.t_near + static_cast<double>(j0 + l) * delta, ends[l])) return r;
     }
     if (segment(sp.t_far, f(sp.t_far))) return r;
     for (int c = 0; c < 3; ++c) r.radiance[c] += T * bg[c];

@@ -120,23 +120,30 @@ float up(double x) {
     return static_cast<double>(f) >= x ? f : std::nextafter(f, INFINITY);
 }
 
+/// The range [lo, hi] of a macrocell's nodes (nan: one is NaN), widened to
+/// hold every trilinear sample computed from them (MacrocellRanges).
+std::array<double, 2> sample_range(double lo, double hi, bool nan) {
+    const double margin = 0x1p-40 * std::max(std::abs(lo), std::abs(hi));
+    if (nan || !std::isfinite(margin)) return {-INFINITY, INFINITY};  // a NaN or an infinite node: no bound
+    // Where the nodes are ≥ 0, each lerp a + f·(b − a) stays ≥ 0 (b − a
+    // rounds to no less than −a) and ≤ hi if hi is an integer (a + (b − a)
+    // exceeds hi by half an ulp of hi at most, a tie that rounds to the
+    // even hi); the same mirrored where the nodes are ≤ 0. Elsewhere
+    // rounding can leave the nodes' range: nodes 1500, 1501 and −1024
+    // give −1024 − 2^−42 at fx = 3·2^−42, fy = 1 (MacrocellRanges test).
+    const bool exact_lo = lo == 0.0 || (hi <= 0.0 && even_integer(lo));
+    const bool exact_hi = hi == 0.0 || (lo >= 0.0 && even_integer(hi));
+    return {exact_lo ? lo : lo - margin, exact_hi ? hi : hi + margin};
+}
+
 }  // namespace
 
 MacrocellRanges::MacrocellRanges(const Volume& v, int shift, int threads) : MacrocellLattice(v, shift) {
     range_.resize(static_cast<std::size_t>(2 * dims_[0] * dims_[1] * dims_[2]));
     reduce_macrocells(v, dims_, shift, threads, [&](std::size_t i, double lo, double hi, bool nan) {
-        const double margin = 0x1p-40 * std::max(std::abs(lo), std::abs(hi));
-        const bool open = nan || !std::isfinite(margin);  // a NaN or an infinite node: no bound
-        // Where the nodes are ≥ 0, each lerp a + f·(b − a) stays ≥ 0 (b − a
-        // rounds to no less than −a) and ≤ hi if hi is an integer (a + (b − a)
-        // exceeds hi by half an ulp of hi at most, a tie that rounds to the
-        // even hi); the same mirrored where the nodes are ≤ 0. Elsewhere
-        // rounding can leave the nodes' range: nodes 1500, 1501 and −1024
-        // give −1024 − 2^−42 at fx = 3·2^−42, fy = 1 (MacrocellRanges test).
-        const bool exact_lo = lo == 0.0 || (hi <= 0.0 && even_integer(lo));
-        const bool exact_hi = hi == 0.0 || (lo >= 0.0 && even_integer(hi));
-        range_[2 * i] = open ? -INFINITY : down(exact_lo ? lo : lo - margin);
-        range_[2 * i + 1] = open ? INFINITY : up(exact_hi ? hi : hi + margin);
+        const auto r = sample_range(lo, hi, nan);
+        range_[2 * i] = down(r[0]);
+        range_[2 * i + 1] = up(r[1]);
     });
 }
 
@@ -182,6 +189,14 @@ EmptySpace EmptySpace::for_scalar(const Volume& v, const Classifier& tf, Model m
     });
     es.joins_empty_ = !above.load();
     return es;
+}
+
+EmptySpace EmptySpace::for_isosurfaces(const Volume& v, const std::vector<double>& isos, int shift,
+                                       int threads) {
+    return from_ranges(v, shift, threads, [&](double lo, double hi) {
+        const auto r = sample_range(lo, hi, false);
+        return std::all_of(isos.begin(), isos.end(), [&](double iso) { return r[1] < iso || r[0] >= iso; });
+    });
 }
 
 EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads) {

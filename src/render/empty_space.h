@@ -102,6 +102,8 @@ public:
     MacrocellLattice(const Volume& v, int shift);
     /// Macrocells per axis.
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
+    /// Cells per macrocell edge.
+    [[nodiscard]] std::int64_t edge() const { return std::int64_t{1} << shift_; }
     /// The macrocell of a position, the cell chosen as GridSampler picks it.
     [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
         return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
@@ -130,6 +132,14 @@ public:
     static EmptySpace for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads);
     /// Pre-classified grids: empty where every density node is exactly 0.
     static EmptySpace for_density(const Volume& density, int shift, int threads);
+    /// Isosurfaces: "empty" where every sample lies on the same side of
+    /// each iso-value (x < iso or not; the node range widened as
+    /// MacrocellRanges widens it). Two such macrocells that touch share a
+    /// node, so they lie on the same sides: a ray's samples that step to a
+    /// touching macrocell each time (at most a macrocell edge per axis)
+    /// cross no iso-value while they stay in such macrocells.
+    static EmptySpace for_isosurfaces(const Volume& v, const std::vector<double>& isos, int shift,
+                                      int threads);
 
     /// True when at least one macrocell is empty (else skipping is pointless).
     [[nodiscard]] bool any() const { return any_; }

@@ -95,7 +95,21 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     setup_lattice(*this, volume);
     tf = Classifier(transfer, volume.smallest_spacing());
     if (s.skip_empty) empty_space = EmptySpace::for_scalar(volume, tf, s.model, kMacrocellShift, s.threads);
-    if (s.skip_empty && (s.model == Model::mip || s.model == Model::minip || s.model == Model::isosurface))
+    if (s.skip_empty && s.model == Model::isosurface) {
+        std::vector<double> isos;
+        for (const IsoSurface& iso : s.isosurfaces) isos.push_back(iso.value);
+        empty_space = EmptySpace::for_isosurfaces(volume, isos, kMacrocellShift, s.threads);
+    }
+    // Isosurfaces walk the macrocells where a step moves at most a macrocell
+    // edge less a cell along each axis (trace_isosurfaces); the ranges serve
+    // larger steps, and mip and minip.
+    double index_step = 0;  // the most a step of h moves along an index axis
+    for (int a = 0; a < 3; ++a)
+        index_step = std::max(index_step, h * length(Vec3{world_to_index.m[a][0], world_to_index.m[a][1],
+                                                          world_to_index.m[a][2]}));
+    const bool iso_ranges =
+        s.model == Model::isosurface && index_step > static_cast<double>((1 << kMacrocellShift) - 1);
+    if (s.skip_empty && (s.model == Model::mip || s.model == Model::minip || iso_ranges))
         ranges = MacrocellRanges(volume, kRangeShift, s.threads);
     if (s.simd) {
         flat_sigma = simd::flatten(tf.sigma_function());
@@ -224,7 +238,7 @@ PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
     const bool zero_able =
         s.model == Model::emission_absorption || s.model == Model::absorption || s.model == Model::emission;
     const EmptySpace* es = skipper();
-    if (es == nullptr || !segments || !zero_able) return {};
+    if (es == nullptr || !((segments && zero_able) || s.model == Model::isosurface)) return {};
     return es->pixel_bounds(camera, s.width, s.height, axes, origin, s.threads);
 }
 

@@ -93,8 +93,8 @@ struct Renderer::Impl {
     }
 
     /// The frame's PixelBounds for `camera` where its tracer walks the
-    /// macrocells (the integrators over segments of a zero-able medium);
-    /// else none.
+    /// macrocells (the integrators over segments of a zero-able medium, and
+    /// isosurfaces); else none.
     [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera) const;
 
     /// The ray's result; [occupied_lo, occupied_hi] bounds the t of its

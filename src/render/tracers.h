@@ -96,8 +96,9 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
                 const ShadeSetup* shade = &im.shade;
                 const simd::BatchSource* simd = im.batch.data != nullptr ? &im.batch : nullptr;
                 const MacrocellRanges* ranges = im.ranger();
-                return [med, s, h, bg, shade, simd, ranges](const RaySpan& sp) {
-                    return trace_isosurfaces(med, sp, s, h, bg, *shade, simd, ranges);
+                const EmptySpace* es = im.skipper();
+                return [med, s, h, bg, shade, simd, ranges, es](const RaySpan& sp) {
+                    return trace_isosurfaces(med, sp, s, h, bg, *shade, simd, ranges, es);
                 };
             }
             break;
