@@ -233,6 +233,15 @@ TEST(Cli, BenchReportsFrameTimesAsJson) {
     EXPECT_GT(j["volume_bytes"].get<double>(), 0.0);
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 1 --no-bricks", d).status, 0);
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 0", d).status, 2);
+    // the summary names the integrator, or the model where it ignores the integrator
+    for (const auto& [flags, name] : {std::pair<std::string, std::string>{"", " preintegrated step"},
+                                      {" --model mip", " mip step"},
+                                      {" --iso 100", " isosurface step"}}) {
+        const auto run =
+            fathom::test::run_cli("bench " + (d / "scene.json").string() + " --frames 1" + flags, d);
+        ASSERT_EQ(run.status, 0) << run.err;
+        EXPECT_NE(run.out.find(name), std::string::npos) << run.out;
+    }
 }
 
 TEST(Cli, ClipPlaneAndCropFlags) {

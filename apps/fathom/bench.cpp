@@ -107,13 +107,17 @@ void run_bench(const BenchArgs& a) {
                      {"first_image_seconds", first_image},
                      {"pixels_per_second", pixels / median},
                      {"segments_per_second", static_cast<double>(segments) / total}};
+    // The integrator, or the model where it ignores the integrator.
+    const Model m = sc.settings.model;
+    const bool optical = m == Model::emission_absorption || m == Model::absorption || m == Model::emission;
+    const std::string what(optical ? to_string(sc.settings.integrator) : to_string(m));
     std::printf(
         "%s %dx%d %s step %g, %d threads: median %.3f s, min %.3f s (%d frames), %.3g pixels/s, %.3g "
         "segments/s; load %.2f s, setup %.3f s, first frame %.3f s (first image %.2f s), peak RSS %.0f MB\n",
-        j["scene"].get<std::string>().c_str(), sc.settings.width, sc.settings.height,
-        std::string(to_string(sc.settings.integrator)).c_str(), sc.settings.step, threads, median,
-        sorted.front(), a.frames, pixels / median, static_cast<double>(segments) / total, load_s, setup_s,
-        times.front(), first_image, peak_rss_bytes() / 1e6);
+        j["scene"].get<std::string>().c_str(), sc.settings.width, sc.settings.height, what.c_str(),
+        sc.settings.step, threads, median, sorted.front(), a.frames, pixels / median,
+        static_cast<double>(segments) / total, load_s, setup_s, times.front(), first_image,
+        peak_rss_bytes() / 1e6);
     if (!a.json.empty()) write_text_file(a.json, j.dump(2) + "\n");
 }
 
