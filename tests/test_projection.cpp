@@ -2,7 +2,8 @@
 // (src/integrate/projection.h, isosurface.h, MacrocellRanges in
 // render/empty_space.h): the ranges hold every sample GridSampler computes,
 // and mip, minip, average and isosurface images are bit-identical with
-// skipping and SIMD batches on and off.
+// skipping and SIMD batches on and off, whole and cut by a cropping box and
+// a clipping plane.
 #include <cmath>
 #include <cstring>
 #include <numbers>
@@ -72,23 +73,32 @@ bool same(const Image& a, const Image& b) {
     return eq(a.rgba, b.rgba) && eq(a.depth, b.depth) && eq(a.first_hit, b.first_hit);
 }
 
-/// Renders with skipping and SIMD on and off (four images per camera);
-/// returns how many differ from the plain scalar loop's.
+/// Renders with skipping and SIMD on and off (four images per camera),
+/// whole and cut (a cropping box and a clipping plane); returns how many
+/// differ from the plain scalar loop's.
 int compare(const Volume& v, const TransferFunction& tf, RenderSettings s, double step) {
     s.width = 48;
     s.height = 40;
     s.threads = 2;
     s.step = step;
     s.depth_outputs = true;
+    const Bounds b = volume_bounds(v);
     int bad = 0;
-    for (const Camera& cam : cameras(v)) {
-        s.skip_empty = false;
-        s.simd = false;
-        const Image plain = Renderer(v, tf, s).render(cam);
-        for (int variant = 1; variant < 4; ++variant) {
-            s.skip_empty = (variant & 1) != 0;
-            s.simd = (variant & 2) != 0;
-            if (!same(Renderer(v, tf, s).render(cam), plain)) ++bad;
+    for (bool cut : {false, true}) {
+        if (cut) {
+            const Vec3 r{b.radius, b.radius, b.radius};
+            s.crop = WorldBox{b.center - r * 0.6, b.center + r * 0.5};
+            s.clip_planes = {{b.center, Vec3{0.3, -0.5, 0.8}}};
+        }
+        for (const Camera& cam : cameras(v)) {
+            s.skip_empty = false;
+            s.simd = false;
+            const Image plain = Renderer(v, tf, s).render(cam);
+            for (int variant = 1; variant < 4; ++variant) {
+                s.skip_empty = (variant & 1) != 0;
+                s.simd = (variant & 2) != 0;
+                if (!same(Renderer(v, tf, s).render(cam), plain)) ++bad;
+            }
         }
     }
     return bad;
