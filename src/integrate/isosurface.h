@@ -117,7 +117,8 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         return false;
     };
     alignas(64) double ends[simd::kBatch];
-    auto t_of = [&](std::int64_t j) { return sp.t_near + static_cast<double>(j) * delta; };
+    const SampleGrid grid{&sp, delta, 0.0, 0};  // end j at t_near + j·δ
+    auto t_of = [&](std::int64_t j) { return grid.t(j); };
     // Ends j0 .. j1 evaluated in batches: true once the ray stops.
     auto evaluate = [&](std::int64_t j0, std::int64_t j1) {
         for (; j0 <= j1; j0 += simd::kBatch) {
@@ -128,13 +129,11 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         }
         return false;
     };
-    // a step of at most a macrocell edge less one cell along every axis:
-    // the computed positions of two consecutive ends then lie in touching
-    // macrocells (a step of exactly an edge, rounded, can pass one)
-    const double edge = es != nullptr ? static_cast<double>(es->edge() - 1) : 0.0;
-    if (es != nullptr && std::abs(sp.dp.x * delta) <= edge && std::abs(sp.dp.y * delta) <= edge &&
-        std::abs(sp.dp.z * delta) <= edge) {
-        const RunFinder runs(*es, SampleGrid{&sp, delta, 0.0, 0});  // end j at t_near + j·δ
+    // consecutive ends in touching macrocells
+    const double step = es != nullptr ? es->touching_step() : 0.0;
+    if (es != nullptr && std::abs(sp.dp.x * delta) <= step && std::abs(sp.dp.y * delta) <= step &&
+        std::abs(sp.dp.z * delta) <= step) {
+        const RunFinder runs(*es, grid);
         for (std::int64_t j = 1; j < n;) {
             const RunFinder::Run run = runs.run_through(j, +1, n - 1);
             if (run.empty) {
@@ -148,7 +147,7 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
     } else {
         for (std::int64_t j0 = 1; j0 < n; j0 += simd::kBatch) {
             const std::int64_t j1 = std::min(j0 + simd::kBatch - 1, n - 1);
-            if (ranges != nullptr && ranges->within(sp.at(t_of(j0)), sp.at(t_of(j1)), side[0], side[1])) {
+            if (ranges != nullptr && ranges->within(grid.at(j0), grid.at(j1), side[0], side[1])) {
                 ta = t_of(j1);  // fa keeps its side, which is every skipped end's
                 continue;
             }

@@ -36,8 +36,8 @@ void scalar_ends(const ScalarMedium<T>& med, const RaySpan& sp, double delta, co
         simd::interpolate_batch(*simd, rg, j0, count, out);
         return;
     }
-    for (int l = 0; l < count; ++l)
-        out[l] = med.scalar(sp.at(sp.t_near + static_cast<double>(j0 + l) * delta));
+    const SampleGrid grid{&sp, delta, 0.0, 0};
+    for (int l = 0; l < count; ++l) out[l] = med.scalar(grid.at(j0 + l));
 }
 
 template <Model M, class T>
@@ -75,10 +75,10 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         // (a NaN at end 0 stays, later ones never win).
         thread_local std::vector<double> bound;
         bound.resize(static_cast<std::size_t>(batches));
+        const SampleGrid grid{&sp, delta, 0.0, 0};  // end j at t_near + j·δ
         for (std::int64_t b = 1; b < batches; ++b) {
             const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch - 1, n);
-            const auto r = ranges->bounds(sp.at(sp.t_near + static_cast<double>(j0) * delta),
-                                          sp.at(sp.t_near + static_cast<double>(j1) * delta));
+            const auto r = ranges->bounds(grid.at(j0), grid.at(j1));
             bound[static_cast<std::size_t>(b)] = M == Model::mip ? r[1] : -r[0];
         }
         fold(0);

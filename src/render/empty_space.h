@@ -102,8 +102,13 @@ public:
     MacrocellLattice(const Volume& v, int shift);
     /// Macrocells per axis.
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
-    /// Cells per macrocell edge.
-    [[nodiscard]] std::int64_t edge() const { return std::int64_t{1} << shift_; }
+    /// The longest step along an index axis (cells) after which the
+    /// computed position of the next sample still lies in a macrocell
+    /// touching the last one: a macrocell edge less a cell (a step of a
+    /// whole edge, rounded, can pass a macrocell).
+    [[nodiscard]] double touching_step() const {
+        return static_cast<double>((std::int64_t{1} << shift_) - 1);
+    }
     /// The macrocell of a position, the cell chosen as GridSampler picks it.
     [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
         return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};

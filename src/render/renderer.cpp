@@ -100,15 +100,14 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         for (const IsoSurface& iso : s.isosurfaces) isos.push_back(iso.value);
         empty_space = EmptySpace::for_isosurfaces(volume, isos, kMacrocellShift, s.threads);
     }
-    // Isosurfaces walk the macrocells where a step moves at most a macrocell
-    // edge less a cell along each axis (trace_isosurfaces); the ranges serve
-    // larger steps, and mip and minip.
+    // Isosurfaces walk the macrocells where a step reaches a touching one at
+    // most along each axis (trace_isosurfaces); the ranges serve larger
+    // steps, and mip and minip.
     double index_step = 0;  // the most a step of h moves along an index axis
     for (int a = 0; a < 3; ++a)
         index_step = std::max(index_step, h * length(Vec3{world_to_index.m[a][0], world_to_index.m[a][1],
                                                           world_to_index.m[a][2]}));
-    const bool iso_ranges =
-        s.model == Model::isosurface && index_step > static_cast<double>((1 << kMacrocellShift) - 1);
+    const bool iso_ranges = s.model == Model::isosurface && index_step > empty_space.touching_step();
     if (s.skip_empty && (s.model == Model::mip || s.model == Model::minip || iso_ranges))
         ranges = MacrocellRanges(volume, kRangeShift, s.threads);
     if (s.simd) {
