@@ -279,82 +279,6 @@ HWY_INLINE void gather_triple(D d, const BatchSource& src, V o, V* v) {
     }
 }
 
-/// As shared_rows along x: the lower point's cell is `cell`, the upper
-/// one's cell + e_x; each of the 4 rows gives nodes x, x + 1 and x + 2 from
-/// one gather (gather_triple), 4 gathers instead of 8.
-template <class T>
-HWY_INLINE void shared_x(const BatchSource& src, const double (*cell)[kBatch], const double (*lo)[kBatch],
-                         const double (*hi)[kBatch], std::size_t b, V& out_lo, V& out_hi) {
-    const D d;
-    constexpr double size = sizeof(T);
-    const double sy = static_cast<double>(src.nx) * size, sz = sy * static_cast<double>(src.ny);
-    const V index = linear_node(d, src, cell, b);
-    const V off = hn::Mul(index, hn::Set(d, size));  // exact integers
-    const double rows[4] = {0, sy, sz, sz + sy};
-    V r[4][3];
-    for (int k = 0; k < 4; ++k) gather_triple<T>(d, src, hn::Add(off, hn::Set(d, rows[k])), r[k]);
-    V c[8];
-    for (int k = 0; k < 4; ++k) {
-        c[2 * k] = r[k][0];
-        c[2 * k + 1] = r[k][1];
-    }
-    out_lo = Lerp8(c, hn::Load(d, lo[0] + b), hn::Load(d, lo[1] + b), hn::Load(d, lo[2] + b));
-    for (int k = 0; k < 4; ++k) {
-        c[2 * k] = r[k][1];
-        c[2 * k + 1] = r[k][2];
-    }
-    out_hi = Lerp8(c, hn::Load(d, hi[0] + b), hn::Load(d, hi[1] + b), hn::Load(d, hi[2] + b));
-}
-
-/// The trilinear values of two points per lane b … b + N − 1 one cell apart
-/// along axis a = 1 (y) or 2 (z): `cell` locates the lower one, and the
-/// upper one's cell is cell + e_a in every lane (x and the other axis
-/// equal); fractions `lo` and `hi`. Their corners span 6 rows of x-pairs,
-/// gathered once (8- and 16-bit samples, x-fastest, under kPairBytesMax):
-/// the same values as two pair_corners calls, 6 gathers instead of 8.
-template <class T>
-HWY_INLINE void shared_rows(const BatchSource& src, int a, const double (*cell)[kBatch],
-                            const double (*lo)[kBatch], const double (*hi)[kBatch], std::size_t b, V& out_lo,
-                            V& out_hi) {
-    const D d;
-    const hn::Rebind<std::int32_t, D> di;
-    constexpr std::int64_t size = sizeof(T);
-    const std::int64_t sy = src.nx * size, sz = sy * src.ny;
-    // rows (y, z) from the lower cell's: a = y: (0,0) (1,0) (2,0) (0,1) (1,1) (2,1);
-    // a = z: (0,0) (1,0) (0,1) (1,1) (0,2) (1,2)
-    const std::int64_t rows[6] = {0,
-                                  sy,
-                                  a == 1 ? 2 * sy : sz,
-                                  a == 1 ? sz : sz + sy,
-                                  a == 1 ? sz + sy : 2 * sz,
-                                  a == 1 ? sz + 2 * sy : 2 * sz + sy};
-    const std::int64_t stored = src.nx * src.ny * src.nz;
-    const V index = linear_node(d, src, cell, b);
-    const auto off = hn::DemoteTo(di, hn::Mul(index, hn::Set(d, static_cast<double>(size))));
-    const auto last = hn::Set(di, static_cast<std::int32_t>(stored * size - 4));
-    V r[6][2];
-    for (int k = 0; k < 6; ++k) {
-        hn::Vec<decltype(di)> l, h;
-        gather_pair<T>(di, src, hn::Add(off, hn::Set(di, static_cast<std::int32_t>(rows[k]))), last, l, h);
-        r[k][0] = hn::PromoteTo(d, l);
-        r[k][1] = hn::PromoteTo(d, h);
-    }
-    // the rows of the lower point's corners, then the upper's
-    const int lower[4] = {0, 1, a == 1 ? 3 : 2, a == 1 ? 4 : 3};
-    const int upper[4] = {a == 1 ? 1 : 2, a == 1 ? 2 : 3, 4, 5};
-    V c[8];
-    for (int k = 0; k < 4; ++k) {
-        c[2 * k] = r[lower[k]][0];
-        c[2 * k + 1] = r[lower[k]][1];
-    }
-    out_lo = Lerp8(c, hn::Load(d, lo[0] + b), hn::Load(d, lo[1] + b), hn::Load(d, lo[2] + b));
-    for (int k = 0; k < 4; ++k) {
-        c[2 * k] = r[upper[k]][0];
-        c[2 * k + 1] = r[upper[k]][1];
-    }
-    out_hi = Lerp8(c, hn::Load(d, hi[0] + b), hn::Load(d, hi[1] + b), hn::Load(d, hi[2] + b));
-}
-
 /// GridSampler::locate of coordinate `a` of lanes b … b + N − 1: clamped
 /// to [0, n − 1], the cell (≤ n − 2) and the fraction.
 HWY_INLINE void locate(D d, const BatchSource& src, int a, V p, std::size_t b, double (*cell)[kBatch],
@@ -441,14 +365,14 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
 
 /// The differences f(p + h·e_a) − f(p − h·e_a), a = x, y, z, of lanes b …
 /// b + N − 1 (8- and 16-bit samples, x-fastest) from 8 gathers instead of
-/// shared_x's and shared_rows' 16, where in every lane each axis's two
+/// the six points' 24, where in every lane each axis's two
 /// points lie in neighbouring cells and p's own cell is one of them; false
 /// (nothing written) elsewhere. Their corners then lie in 8 rows of
 /// x-pairs: the 4 rows of p's cell, gathered as x-triples from the lower
 /// point's x cell (p's x-pair selected per lane), and one row more beyond
 /// them along y and along z, gathered as pairs at p's x cell. Each point
-/// takes shared_x's and shared_rows' corners and fractions, so the
-/// differences are the same bits.
+/// takes the corners and fractions of its own trilinear lookup, so the
+/// differences are the same bits as two trilinear lookups per axis.
 template <class T>
 HWY_INLINE bool shared_differences(const BatchSource& src, const V* p, std::size_t b, V* diff) {
     const D d;
@@ -508,7 +432,7 @@ HWY_INLINE bool shared_differences(const BatchSource& src, const V* p, std::size
         }
         return Lerp8(k, fx, fy, fz);
     };
-    // x: the triples of p's rows from the lower x cell (shared_x); P: p's x-pairs
+    // x: the triples of p's rows from the lower x cell; P: p's x-pairs
     const V core = offset(lo[0], c[1], c[2]);
     Pair low[4], high[4], P[2][2];  // P[y][z]
     for (int i = 0; i < 4; ++i) {
@@ -520,7 +444,7 @@ HWY_INLINE bool shared_differences(const BatchSource& src, const V* p, std::size
         P[y][z] = pick(same[0], low[i], high[i]);
     }
     diff[0] = hn::Sub(lerp(high, fh[0], f[1], f[2]), lerp(low, fl[0], f[1], f[2]));
-    // y: rows lo_y, lo_y + 1, lo_y + 2 (shared_rows); the one beyond p's cell gathered
+    // y: rows lo_y, lo_y + 1, lo_y + 2; the one beyond p's cell gathered
     const V ey = hn::IfThenElse(same[1], hn::Add(lo[1], hn::Set(d, 2.0)), lo[1]);
     for (int z = 0; z < 2; ++z) {
         const Pair beyond = pair(hn::Add(offset(c[0], ey, c[2]), hn::Set(d, z * sz)));
@@ -565,52 +489,29 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
     HWY_ALIGN double frac[3][kBatch];
     HWY_ALIGN double value[kBatch];
     const V h = hn::Set(d, kGradientStep);
-    // The two points' cells along each axis are usually neighbours: their
-    // corners then share nodes, gathered once (shared_x, shared_rows).
+    // The two points of each axis usually lie in neighbouring cells, p's
+    // own among them: their corners then share rows (shared_differences).
     constexpr bool kShareRows = kPairs<T> && sizeof(T) <= 2;
     const bool share = kShareRows && src.bricks_x == 0 &&
                        src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax;
-    HWY_ALIGN double cell_lo[3][kBatch];
-    HWY_ALIGN double frac_lo[3][kBatch];
     V du[3];
-    bool differenced = false;
-    if constexpr (kShareRows) {
-        if (share && shared_differences<T>(src, p, b, du)) {
-            for (auto& g : du) g = hn::Div(g, hn::Set(d, 2 * kGradientStep));
-            differenced = true;
-        }
-    }
-    for (int a = 0; a < 3 && !differenced; ++a) {
-        V side[2];
-        if (share) {
-            for (int e = 0; e < 3; ++e) {
-                locate(d, src, e, e != a ? p[e] : hn::Add(p[e], h), b, cell, frac);
-                locate(d, src, e, e != a ? p[e] : hn::Sub(p[e], h), b, cell_lo, frac_lo);
+    if (share && shared_differences<T>(src, p, b, du)) {
+        for (auto& g : du) g = hn::Div(g, hn::Set(d, 2 * kGradientStep));
+    } else {
+        for (int a = 0; a < 3; ++a) {
+            V side[2];
+            for (int k = 0; k < 2; ++k) {  // p + h·e_a, then p − h·e_a
+                for (int e = 0; e < 3; ++e)
+                    locate(d, src, e,
+                           e != a   ? p[e]
+                           : k == 0 ? hn::Add(p[e], h)
+                                    : hn::Sub(p[e], h),
+                           b, cell, frac);
+                trilinear<T>(src, cell, frac, b, b + N, value, false);
+                side[k] = hn::Load(d, value + b);
             }
-            const V next = hn::Add(hn::Load(d, cell_lo[a] + b), hn::Set(d, 1.0));
-            if (hn::AllTrue(d, hn::Eq(hn::Load(d, cell[a] + b), next))) {
-                if constexpr (kShareRows) {
-                    if (a == 0) {
-                        shared_x<T>(src, cell_lo, frac_lo, frac, b, side[1], side[0]);
-                    } else {
-                        shared_rows<T>(src, a, cell_lo, frac_lo, frac, b, side[1], side[0]);
-                    }
-                }
-                du[a] = hn::Div(hn::Sub(side[0], side[1]), hn::Set(d, 2 * kGradientStep));
-                continue;
-            }
+            du[a] = hn::Div(hn::Sub(side[0], side[1]), hn::Set(d, 2 * kGradientStep));
         }
-        for (int k = 0; k < 2; ++k) {  // p + h·e_a, then p − h·e_a
-            for (int e = 0; e < 3; ++e)
-                locate(d, src, e,
-                       e != a   ? p[e]
-                       : k == 0 ? hn::Add(p[e], h)
-                                : hn::Sub(p[e], h),
-                       b, cell, frac);
-            trilinear<T>(src, cell, frac, b, b + N, value, false);
-            side[k] = hn::Load(d, value + b);
-        }
-        du[a] = hn::Div(hn::Sub(side[0], side[1]), hn::Set(d, 2 * kGradientStep));
     }
     V grad[3];
     for (int i = 0; i < 3; ++i) {
