@@ -172,7 +172,7 @@ TEST(EmptySpace, MacrocellRangesMatchBruteForce) {
                         v.set_value(at % n[0], at / n[0] % n[1], at / (n[0] * n[1]), value);
                         v.set_value(pick(rng) % n[0], 0, 0, 5.0, comps - 1);  // other component
                     }
-                    const EmptySpace es = EmptySpace::for_density(v, shift, 2);
+                    const EmptySpace es = EmptySpace::for_zeros(v, shift, 2);
                     const std::int64_t c = std::int64_t{1} << shift;
                     const std::array<std::int64_t, 3> md{(n[0] - 2) / c + 1, (n[1] - 2) / c + 1,
                                                          (n[2] - 2) / c + 1};
@@ -249,7 +249,7 @@ TEST(EmptySpace, PreclassifiedGridImagesAreBitIdentical) {
             for (std::int64_t i = 0; i < 37; ++i)
                 for (int c = 0; c < 3; ++c)
                     color.set_value(i, j, k, 0.1 + 0.02 * static_cast<double>((i + c * j) % 40), c);
-    ASSERT_TRUE(EmptySpace::for_density(density, 3, 2).any());
+    ASSERT_TRUE(EmptySpace::for_zeros(density, 3, 2).any());
     for (auto k : kSkipping)
         for (auto o : {Order::front_to_back, Order::back_to_front}) {
             RenderSettings s = base(k, Model::emission_absorption, o);
@@ -431,7 +431,7 @@ TEST(EmptySpace, SegmentsJoinEmptyMacrocellsOnlyWithinOneZeroInterval) {
     ASSERT_TRUE(es_two.any());
     EXPECT_FALSE(es_two.joins_empty());  // empty ranges in both bands
     EXPECT_TRUE(EmptySpace::for_scalar(slabs, c_blob, Model::emission_absorption, 2, 1).joins_empty());
-    EXPECT_TRUE(EmptySpace::for_density(slabs, 2, 1).joins_empty());
+    EXPECT_TRUE(EmptySpace::for_zeros(slabs, 2, 1).joins_empty());
     int compared = 0;
     for (IntegratorKind k : {IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple})
         for (Order o : {Order::front_to_back, Order::back_to_front})

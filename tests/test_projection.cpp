@@ -1,7 +1,8 @@
 // Skipping for the models whose result depends on the scalar's range alone
 // (src/integrate/projection.h, isosurface.h, MacrocellRanges in
-// render/empty_space.h): the ranges hold every sample GridSampler computes,
-// and mip, minip, average and isosurface images are bit-identical with
+// render/empty_space.h; the average by EmptySpace::for_zeros): the ranges
+// hold every sample GridSampler computes, and mip, minip, average and
+// isosurface images are bit-identical with
 // skipping and SIMD batches on and off, whole and cut by a cropping box and
 // a clipping plane.
 #include <cmath>
@@ -194,6 +195,28 @@ TEST(Projection, ImagesAreBitIdenticalWithAndWithoutSkippingAndSimd) {
                 EXPECT_EQ(compare(c.volume, ramp_tf(c.volume), s, step), 0)
                     << c.name << " " << to_string(m) << " step " << step;
             }
+}
+
+// The average skips macrocells whose nodes are all 0 (the u8 case above
+// has them too): float32 zeros, every other one −0, so that samples and
+// sums of −0 meet the skipped ones; the images are the same bits (skipping
+// a non-empty run's ends fails this and the test above).
+TEST(Projection, AveragesSkipZerosExactly) {
+    Volume v = lumpy(DType::f32, 2.5, 0.0, 4);
+    int negative = 0;
+    for (std::int64_t k = 0; k < v.dims()[2]; ++k)
+        for (std::int64_t j = 0; j < v.dims()[1]; ++j)
+            for (std::int64_t i = 0; i < v.dims()[0]; ++i)
+                if (v.value(i, j, k) == 0.0 && (i + j + k) % 2 == 0) {
+                    v.set_value(i, j, k, -0.0);
+                    ++negative;
+                }
+    ASSERT_GT(negative, 1000);
+    RenderSettings s;
+    s.model = Model::average;
+    // above the share at which the renderer walks past zeros (kZerosWorth, 5 %)
+    EXPECT_GT(EmptySpace::for_zeros(v, 2, 1).empty_fraction(), 0.05);
+    for (double step : {0.5, 1.3}) EXPECT_EQ(compare(v, ramp_tf(v), s, step), 0) << "step " << step;
 }
 
 // One opaque surface, and two translucent ones of which one sits on a

@@ -820,7 +820,7 @@ void DiffRenderer::skip_empty_where(const Volume& occupied) {
     impl_->base.empty_space = {};
     const IntegratorKind k = impl_->base.s.integrator;
     const int shift = k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;  // as Renderer
-    impl_->base.empty_space = EmptySpace::for_density(occupied, shift, impl_->base.s.threads);
+    impl_->base.empty_space = EmptySpace::for_zeros(occupied, shift, impl_->base.s.threads);
     impl_->skip = impl_->base.empty_space.any();
 }
 

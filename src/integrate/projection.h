@@ -8,7 +8,10 @@
 // GridSampler's bits) and folded in order, so the result is the scalar
 // loop's bit for bit. With macrocell ranges, mip and minip skip a batch
 // whose ends all lie in macrocells that cannot beat the value so far:
-// samples no larger (mip) or no smaller (minip) leave it unchanged.
+// samples no larger (mip) or no smaller (minip) leave it unchanged. The
+// average skips the runs of ends in macrocells whose nodes are all 0
+// (EmptySpace::for_zeros): a sample there is 0, and adding 0 leaves the
+// sum unchanged (but for the sign of a zero sum, which c(v) does not see).
 #pragma once
 
 #include <algorithm>
@@ -42,16 +45,14 @@ void scalar_ends(const ScalarMedium<T>& med, const RaySpan& sp, double delta, co
 
 template <Model M, class T>
 RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const simd::BatchSource* simd,
-                  const MacrocellRanges* ranges) {
+                  const MacrocellRanges* ranges, const EmptySpace* zeros = nullptr) {
     static_assert(M == Model::mip || M == Model::minip || M == Model::average);
     const std::int64_t n = segment_count(sp.length(), h);
     const double delta = sp.length() / static_cast<double>(n);
     alignas(64) double ends[simd::kBatch];
     double v = 0;
-    // Batch b: ends b·kBatch .. its last (b = 0 first, in order: v starts at end 0).
-    auto fold = [&](std::int64_t b) {
-        const std::int64_t j0 = b * simd::kBatch;
-        const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0 + 1));
+    // Ends j0 .. j0 + count − 1 (end 0 first, in order: v starts at end 0).
+    auto fold = [&](std::int64_t j0, int count) {
         scalar_ends(med, sp, delta, simd, j0, count, ends);
         for (int l = 0; l < count; ++l) {
             const std::int64_t i = j0 + l;
@@ -65,9 +66,25 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
             if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
         }
     };
+    // Batch b: ends b·kBatch .. its last.
+    auto fold_batch = [&](std::int64_t b) {
+        const std::int64_t j0 = b * simd::kBatch;
+        fold(j0, static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0 + 1)));
+    };
     const std::int64_t batches = n / simd::kBatch + 1;
-    if (M == Model::average || ranges == nullptr) {
-        for (std::int64_t b = 0; b < batches; ++b) fold(b);
+    if (M == Model::average && zeros != nullptr) {
+        // The runs of ends in macrocells of zeros add nothing; the others
+        // are folded in order, kBatch at a time.
+        const RunFinder runs(*zeros, SampleGrid{&sp, delta, 0.0, 0});
+        for (std::int64_t j = 0; j <= n;) {
+            const RunFinder::Run run = runs.run_through(j, +1, n);
+            if (!run.empty)
+                for (std::int64_t j0 = j; j0 <= run.last; j0 += simd::kBatch)
+                    fold(j0, static_cast<int>(std::min<std::int64_t>(simd::kBatch, run.last - j0 + 1)));
+            j = run.last + 1;
+        }
+    } else if (M == Model::average || ranges == nullptr) {
+        for (std::int64_t b = 0; b < batches; ++b) fold_batch(b);
     } else {
         // Best first: after batch 0, the batch whose macrocells could hold
         // the most extreme sample, until none can beat v. The largest (or
@@ -81,7 +98,7 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
             const auto r = ranges->bounds(grid.at(j0), grid.at(j1));
             bound[static_cast<std::size_t>(b)] = M == Model::mip ? r[1] : -r[0];
         }
-        fold(0);
+        fold_batch(0);
         for (;;) {
             std::size_t best = 0;  // none
             double most = M == Model::mip ? v : -v;
@@ -91,7 +108,7 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
                     best = b;
                 }
             if (best == 0) break;
-            fold(static_cast<std::int64_t>(best));
+            fold_batch(static_cast<std::int64_t>(best));
             bound[best] = -INFINITY;
         }
     }

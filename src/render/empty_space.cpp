@@ -199,9 +199,9 @@ EmptySpace EmptySpace::for_isosurfaces(const Volume& v, const std::vector<double
     });
 }
 
-EmptySpace EmptySpace::for_density(const Volume& density, int shift, int threads) {
+EmptySpace EmptySpace::for_zeros(const Volume& v, int shift, int threads) {
     EmptySpace es =
-        from_ranges(density, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
+        from_ranges(v, shift, threads, [](double lo, double hi) { return lo == 0.0 && hi == 0.0; });
     es.joins_empty_ = true;  // σ = 0 at both ends: σ and σ·c are 0 along the segment
     return es;
 }

@@ -135,8 +135,10 @@ public:
     /// A scalar volume classified by `tf` under model `m`, macrocells of
     /// 2^shift cells per edge.
     static EmptySpace for_scalar(const Volume& v, const Classifier& tf, Model m, int shift, int threads);
-    /// Pre-classified grids: empty where every density node is exactly 0.
-    static EmptySpace for_density(const Volume& density, int shift, int threads);
+    /// Empty where every node is exactly 0, so is every sample: a
+    /// pre-classified grid's density, or the scalar of the average
+    /// projection, to which zeros add nothing.
+    static EmptySpace for_zeros(const Volume& v, int shift, int threads);
     /// Isosurfaces: "empty" where every sample lies on the same side of
     /// each iso-value (x < iso or not; the node range widened as
     /// MacrocellRanges widens it). Two such macrocells that touch share a

@@ -67,7 +67,10 @@ Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const double h = im.h;
     const simd::BatchSource* simd = im.batch.data != nullptr ? &im.batch : nullptr;
     const MacrocellRanges* ranges = im.ranger();
-    return [med, h, simd, ranges](const RaySpan& sp) { return project<M>(med, sp, h, simd, ranges); };
+    const EmptySpace* zeros = M == Model::average ? im.skipper() : nullptr;
+    return [med, h, simd, ranges, zeros](const RaySpan& sp) {
+        return project<M>(med, sp, h, simd, ranges, zeros);
+    };
 }
 
 template <class Medium>
