@@ -55,7 +55,7 @@ constexpr double kInactiveShareWorth = 0.15;
 
 /// The least share of macrocells of zeros at which the average's walk past
 /// them pays (docs/performance.md, "Projections and isosurfaces": the
-/// bunny, 0.06 % of its macrocells, was 3–6 % slower with it).
+/// bunny, 0.03 % of its macrocells, was 3–6 % slower with it).
 constexpr double kZerosWorth = 0.05;
 
 /// How far a step along v (index space) moves across the volume's rows.
