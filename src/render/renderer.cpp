@@ -246,7 +246,8 @@ PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
     const bool zero_able =
         s.model == Model::emission_absorption || s.model == Model::absorption || s.model == Model::emission;
     const EmptySpace* es = skipper();
-    if (es == nullptr || !((segments && zero_able) || s.model == Model::isosurface)) return {};
+    const bool walks = (segments && zero_able) || s.model == Model::isosurface || s.model == Model::average;
+    if (es == nullptr || !walks) return {};
     return es->pixel_bounds(camera, s.width, s.height, axes, origin, s.threads);
 }
 

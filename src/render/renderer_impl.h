@@ -93,8 +93,8 @@ struct Renderer::Impl {
     }
 
     /// The frame's PixelBounds for `camera` where its tracer walks the
-    /// macrocells (the integrators over segments of a zero-able medium, and
-    /// isosurfaces); else none.
+    /// macrocells (the integrators over segments of a zero-able medium,
+    /// isosurfaces and the average); else none.
     [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera) const;
 
     /// The ray's result; [occupied_lo, occupied_hi] bounds the t of its
@@ -103,8 +103,12 @@ struct Renderer::Impl {
                                   double occupied_hi = INFINITY) const {
         RaySpan span;
         if (!span_of(ray, span)) return {bg, 0.0};
-        if (!(occupied_lo <= occupied_hi))  // no sample can be in a non-empty macrocell: all (1, 0)
-            return composite(0, s.order, s.termination, bg, [](std::int64_t) { return Segment{1.0, {}}; });
+        if (!(occupied_lo <= occupied_hi)) {  // no sample can be in a non-empty macrocell
+            if (s.model == Model::average) return {tf.color(0.0), 1.0};  // every sample 0
+            return composite(0, s.order, s.termination, bg, [](std::int64_t) {
+                return Segment{1.0, {}};
+            });  // (1, 0)
+        }
         span.sample_offset = sample_offset;
         span.occupied_lo = occupied_lo;
         span.occupied_hi = occupied_hi;
