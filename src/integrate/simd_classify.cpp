@@ -233,14 +233,46 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     }
 }
 
-/// Nodes i, i + 1 and i + 2 of a row from one gather per lane, at byte
-/// offsets `o` of the first (8- and 16-bit samples; the 16-bit ones from
-/// 64-bit words): as doubles. Reads that would pass the array's end are
-/// moved back and the word shifted.
+/// Nodes i and i + 1 of a row per lane, at byte offsets `o` of the first
+/// (exact integers): 8- and 16-bit samples from a 32-bit gather (offsets
+/// below 2³¹), float32 from a 64-bit one; as doubles.
+template <class T>
+HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
+    if constexpr (std::is_same_v<T, float>) {
+        const hn::Rebind<std::int64_t, D> dl;
+        const hn::Rebind<std::uint64_t, D> dq;
+        const hn::Rebind<std::uint32_t, D> du;
+        const hn::Rebind<float, D> df;
+        const auto w =
+            hn::GatherOffset(dq, static_cast<const std::uint64_t*>(src.data), hn::ConvertTo(dl, o));
+        v[0] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, w)));
+        v[1] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, hn::ShiftRight<32>(w))));
+    } else {
+        const hn::Rebind<std::int32_t, D> di;
+        const auto last = hn::Set(
+            di,
+            static_cast<std::int32_t>(src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) - 4));
+        hn::Vec<decltype(di)> l, u;
+        gather_pair<T>(di, src, hn::DemoteTo(di, o), last, l, u);
+        v[0] = hn::PromoteTo(d, l);
+        v[1] = hn::PromoteTo(d, u);
+    }
+}
+
+/// Nodes i, i + 1 and i + 2 of a row at byte offsets `o` of the first, as
+/// doubles: 8- and 16-bit samples from one gather per lane (the 16-bit ones
+/// from 64-bit words; reads that would pass the array's end are moved back
+/// and the word shifted), float32 from two pairs (i, i + 1) and (i + 1,
+/// i + 2).
 template <class T>
 HWY_INLINE void gather_triple(D d, const BatchSource& src, V o, V* v) {
     const std::int64_t bytes = src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T));
-    if constexpr (sizeof(T) == 1) {
+    if constexpr (std::is_same_v<T, float>) {
+        V upper[2];
+        gather_x_pair<T>(d, src, o, v);
+        gather_x_pair<T>(d, src, hn::Add(o, hn::Set(d, 4.0)), upper);
+        v[2] = upper[1];
+    } else if constexpr (sizeof(T) == 1) {
         const hn::Rebind<std::int32_t, D> di;
         const hn::Rebind<std::uint32_t, D> du;
         const auto oi = hn::DemoteTo(di, o);
@@ -364,8 +396,8 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
 }
 
 /// The differences f(p + h·e_a) − f(p − h·e_a), a = x, y, z, of lanes b …
-/// b + N − 1 (8- and 16-bit samples, x-fastest) from 8 gathers instead of
-/// the six points' 24, where in every lane each axis's two
+/// b + N − 1 (8-, 16-bit and float32 samples, x-fastest) from 8 gathers
+/// (12 for float32) instead of the six points' 24, where in every lane each axis's two
 /// points lie in neighbouring cells and p's own cell is one of them; false
 /// (nothing written) elsewhere. Their corners then lie in 8 rows of
 /// x-pairs: the 4 rows of p's cell, gathered as x-triples from the lower
@@ -376,7 +408,6 @@ std::size_t interpolate_typed(const BatchSource& src, const RayGrid& ray, std::i
 template <class T>
 HWY_INLINE bool shared_differences(const BatchSource& src, const V* p, std::size_t b, V* diff) {
     const D d;
-    const hn::Rebind<std::int32_t, D> di;
     const V h = hn::Set(d, kGradientStep), one = hn::Set(d, 1.0);
     HWY_ALIGN double cell[3][kBatch];
     HWY_ALIGN double frac[3][kBatch];
@@ -410,15 +441,13 @@ HWY_INLINE bool shared_differences(const BatchSource& src, const V* p, std::size
     auto offset = [&](V x, V y, V z) {  // node (x, y, z)'s byte offset: an exact integer
         return hn::Mul(hn::Add(x, hn::Mul(nx, hn::Add(y, hn::Mul(ny, z)))), hn::Set(d, size));
     };
-    const auto last = hn::Set(
-        di, static_cast<std::int32_t>(src.nx * src.ny * src.nz * static_cast<std::int64_t>(size) - 4));
     struct Pair {
         V v[2];
     };
     auto pair = [&](V o) {
-        hn::Vec<decltype(di)> l, u;
-        gather_pair<T>(di, src, hn::DemoteTo(di, o), last, l, u);
-        return Pair{{hn::PromoteTo(d, l), hn::PromoteTo(d, u)}};
+        Pair r;
+        gather_x_pair<T>(d, src, o, r.v);
+        return r;
     };
     auto pick = [&](M m, const Pair& x, const Pair& y) {
         return Pair{{hn::IfThenElse(m, x.v[0], y.v[0]), hn::IfThenElse(m, x.v[1], y.v[1])}};
@@ -491,9 +520,9 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
     const V h = hn::Set(d, kGradientStep);
     // The two points of each axis usually lie in neighbouring cells, p's
     // own among them: their corners then share rows (shared_differences).
-    constexpr bool kShareRows = kPairs<T> && sizeof(T) <= 2;
-    const bool share = kShareRows && src.bricks_x == 0 &&
-                       src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax;
+    const bool share =
+        kPairs<T> && src.bricks_x == 0 &&
+        (sizeof(T) == 4 || src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax);
     V du[3];
     if (share && shared_differences<T>(src, p, b, du)) {
         for (auto& g : du) g = hn::Div(g, hn::Set(d, 2 * kGradientStep));
