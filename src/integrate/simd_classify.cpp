@@ -166,6 +166,32 @@ HWY_INLINE V Lerp8(const V* c, V fx, V fy, V fz) {
     return hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0)));
 }
 
+/// Nodes i and i + 1 of a row per lane, at byte offsets `o` of the first
+/// (exact integers): 8- and 16-bit samples from a 32-bit gather (offsets
+/// below 2³¹), float32 from a 64-bit one; as doubles.
+template <class T>
+HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
+    if constexpr (std::is_same_v<T, float>) {
+        const hn::Rebind<std::int64_t, D> dl;
+        const hn::Rebind<std::uint64_t, D> dq;
+        const hn::Rebind<std::uint32_t, D> du;
+        const hn::Rebind<float, D> df;
+        const auto w =
+            hn::GatherOffset(dq, static_cast<const std::uint64_t*>(src.data), hn::ConvertTo(dl, o));
+        v[0] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, w)));
+        v[1] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, hn::ShiftRight<32>(w))));
+    } else {
+        const hn::Rebind<std::int32_t, D> di;
+        const auto last = hn::Set(
+            di,
+            static_cast<std::int32_t>(src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) - 4));
+        hn::Vec<decltype(di)> l, u;
+        gather_pair<T>(di, src, hn::DemoteTo(di, o), last, l, u);
+        v[0] = hn::PromoteTo(d, l);
+        v[1] = hn::PromoteTo(d, u);
+    }
+}
+
 /// GridSampler::interpolate of vectors of cells and fractions, the corners
 /// gathered in pairs (q[0], q[1]) per row: the same values, the same
 /// operations, so the same bits as the scalar fetch.
@@ -205,17 +231,8 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
                                 hn::Set(d, static_cast<double>(size)));
         V c[8];
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
-            const hn::Rebind<std::int64_t, D> dl;
-            const hn::Rebind<std::uint64_t, D> dq;
-            const hn::Rebind<std::uint32_t, D> du;
-            const hn::Rebind<float, D> df;
-            const auto* pairs = static_cast<const std::uint64_t*>(src.data);
-            const auto off = hn::ConvertTo(dl, bytes);
-            for (int r = 0; r < 4; ++r) {
-                const auto w = hn::GatherOffset(dq, pairs, hn::Add(off, hn::Set(dl, rows[r])));
-                c[2 * r] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, w)));
-                c[2 * r + 1] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, hn::ShiftRight<32>(w))));
-            }
+            for (int r = 0; r < 4; ++r)
+                gather_x_pair<T>(d, src, hn::Add(bytes, hn::Set(d, static_cast<double>(rows[r]))), c + 2 * r);
         } else {
             const hn::Rebind<std::int32_t, D> di;
             const auto off = hn::DemoteTo(di, bytes);
@@ -230,32 +247,6 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
         }
         hn::Store(Lerp8(c, hn::Load(d, frac[0] + b), hn::Load(d, frac[1] + b), hn::Load(d, frac[2] + b)), d,
                   out + b);
-    }
-}
-
-/// Nodes i and i + 1 of a row per lane, at byte offsets `o` of the first
-/// (exact integers): 8- and 16-bit samples from a 32-bit gather (offsets
-/// below 2³¹), float32 from a 64-bit one; as doubles.
-template <class T>
-HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
-    if constexpr (std::is_same_v<T, float>) {
-        const hn::Rebind<std::int64_t, D> dl;
-        const hn::Rebind<std::uint64_t, D> dq;
-        const hn::Rebind<std::uint32_t, D> du;
-        const hn::Rebind<float, D> df;
-        const auto w =
-            hn::GatherOffset(dq, static_cast<const std::uint64_t*>(src.data), hn::ConvertTo(dl, o));
-        v[0] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, w)));
-        v[1] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, hn::ShiftRight<32>(w))));
-    } else {
-        const hn::Rebind<std::int32_t, D> di;
-        const auto last = hn::Set(
-            di,
-            static_cast<std::int32_t>(src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) - 4));
-        hn::Vec<decltype(di)> l, u;
-        gather_pair<T>(di, src, hn::DemoteTo(di, o), last, l, u);
-        v[0] = hn::PromoteTo(d, l);
-        v[1] = hn::PromoteTo(d, u);
     }
 }
 
