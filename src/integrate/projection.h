@@ -51,40 +51,40 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
     const double delta = sp.length() / static_cast<double>(n);
     alignas(64) double ends[simd::kBatch];
     double v = 0;
-    // Ends j0 .. j0 + count − 1 (end 0 first, in order: v starts at end 0).
-    auto fold = [&](std::int64_t j0, int count) {
-        scalar_ends(med, sp, delta, simd, j0, count, ends);
-        for (int l = 0; l < count; ++l) {
-            const std::int64_t i = j0 + l;
-            const double s = ends[l];
-            if (i == 0) {
-                v = M == Model::average ? 0.5 * s : s;
-                continue;
+    // Ends j0 .. j1, kBatch at a time (end 0 first, in order: v starts at end 0).
+    auto fold = [&](std::int64_t j0, std::int64_t j1) {
+        for (; j0 <= j1; j0 += simd::kBatch) {
+            const int count = static_cast<int>(std::min<std::int64_t>(simd::kBatch, j1 - j0 + 1));
+            scalar_ends(med, sp, delta, simd, j0, count, ends);
+            for (int l = 0; l < count; ++l) {
+                const std::int64_t i = j0 + l;
+                const double s = ends[l];
+                if (i == 0) {
+                    v = M == Model::average ? 0.5 * s : s;
+                    continue;
+                }
+                if constexpr (M == Model::mip) v = std::max(v, s);
+                if constexpr (M == Model::minip) v = std::min(v, s);
+                if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
             }
-            if constexpr (M == Model::mip) v = std::max(v, s);
-            if constexpr (M == Model::minip) v = std::min(v, s);
-            if constexpr (M == Model::average) v += i == n ? 0.5 * s : s;
         }
     };
     // Batch b: ends b·kBatch .. its last.
     auto fold_batch = [&](std::int64_t b) {
-        const std::int64_t j0 = b * simd::kBatch;
-        fold(j0, static_cast<int>(std::min<std::int64_t>(simd::kBatch, n - j0 + 1)));
+        fold(b * simd::kBatch, std::min(b * simd::kBatch + simd::kBatch - 1, n));
     };
     const std::int64_t batches = n / simd::kBatch + 1;
     if (M == Model::average && zeros != nullptr) {
         // The runs of ends in macrocells of zeros add nothing; the others
-        // are folded in order, kBatch at a time.
+        // are folded in order.
         const RunFinder runs(*zeros, SampleGrid{&sp, delta, 0.0, 0});
         for (std::int64_t j = 0; j <= n;) {
             const RunFinder::Run run = runs.run_through(j, +1, n);
-            if (!run.empty)
-                for (std::int64_t j0 = j; j0 <= run.last; j0 += simd::kBatch)
-                    fold(j0, static_cast<int>(std::min<std::int64_t>(simd::kBatch, run.last - j0 + 1)));
+            if (!run.empty) fold(j, run.last);
             j = run.last + 1;
         }
     } else if (M == Model::average || ranges == nullptr) {
-        for (std::int64_t b = 0; b < batches; ++b) fold_batch(b);
+        fold(0, n);
     } else {
         // Best first: after batch 0, the batch whose macrocells could hold
         // the most extreme sample, until none can beat v. The largest (or

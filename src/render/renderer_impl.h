@@ -49,6 +49,11 @@ struct Renderer::Impl {
         return s.skip_empty && empty_space.any() ? &empty_space : nullptr;
     }
 
+    /// The SIMD batches' source, or nullptr without SIMD.
+    [[nodiscard]] const simd::BatchSource* simd_source() const {
+        return batch.data != nullptr ? &batch : nullptr;
+    }
+
     /// The macrocell ranges to skip by, or nullptr when skipping is off.
     [[nodiscard]] const MacrocellRanges* ranger() const {
         return s.skip_empty && ranges.dims()[0] > 0 ? &ranges : nullptr;
@@ -104,10 +109,9 @@ struct Renderer::Impl {
         RaySpan span;
         if (!span_of(ray, span)) return {bg, 0.0};
         if (!(occupied_lo <= occupied_hi)) {  // no sample can be in a non-empty macrocell
-            if (s.model == Model::average) return {tf.color(0.0), 1.0};  // every sample 0
-            return composite(0, s.order, s.termination, bg, [](std::int64_t) {
-                return Segment{1.0, {}};
-            });  // (1, 0)
+            if (s.model == Model::average) return {tf.color(0.0), 1.0};          // every sample 0
+            const auto nothing = [](std::int64_t) { return Segment{1.0, {}}; };  // every segment (1, 0)
+            return composite(0, s.order, s.termination, bg, nothing);
         }
         span.sample_offset = sample_offset;
         span.occupied_lo = occupied_lo;

@@ -33,7 +33,7 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
     const double h = im.h;
     const Rgb bg = im.bg;
     const EmptySpace* es = im.skipper();
-    const Accel acc{es, im.batch.data != nullptr ? &im.batch : nullptr};
+    const Accel acc{es, im.simd_source()};
     switch (s.integrator) {
         case IntegratorKind::riemann:
             return [med, s, h, bg, acc](const RaySpan& sp) {
@@ -65,7 +65,7 @@ Tracer integrator_tracer(const Medium& med, const Renderer::Impl& im) {
 template <Model M, class T>
 Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const double h = im.h;
-    const simd::BatchSource* simd = im.batch.data != nullptr ? &im.batch : nullptr;
+    const simd::BatchSource* simd = im.simd_source();
     const MacrocellRanges* ranges = im.ranger();
     const EmptySpace* zeros = M == Model::average ? im.skipper() : nullptr;
     return [med, h, simd, ranges, zeros](const RaySpan& sp) {
@@ -97,7 +97,7 @@ Tracer make_tracer(const Medium& med, const Renderer::Impl& im) {
                 const double h = im.h;
                 const Rgb bg = im.bg;
                 const ShadeSetup* shade = &im.shade;
-                const simd::BatchSource* simd = im.batch.data != nullptr ? &im.batch : nullptr;
+                const simd::BatchSource* simd = im.simd_source();
                 const MacrocellRanges* ranges = im.ranger();
                 const EmptySpace* es = im.skipper();
                 return [med, s, h, bg, shade, simd, ranges, es](const RaySpan& sp) {
