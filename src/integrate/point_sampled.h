@@ -81,10 +81,11 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
             // With SIMD, samples are classified a batch at a time, and those
             // whose scalar lies below the medium's zero range (BatchOut::zero)
             // give (1, 0): skipped. With skipping, only the runs in non-empty
-            // macrocells are classified (a run's samples in an empty one give
-            // (1, 0) too); without, the whole ray is one run. Shading keeps a
-            // zero sample zero (σ' = σ·f, g' = (g·D + σ·S)·f with finite
-            // factors), so a shaded medium shades only the others.
+            // macrocells are classified, kLeastRun samples at least (a run's
+            // samples in an empty one give (1, 0) too); without, the whole
+            // ray is one run. Shading keeps a zero sample zero (σ' = σ·f,
+            // g' = (g·D + σ·S)·f with finite factors), so a shaded medium
+            // shades only the others.
             const std::optional<RunFinder> runs =
                 es != nullptr ? std::optional<RunFinder>(std::in_place, *es, grid) : std::nullopt;
             bool in_run = es == nullptr;  // i lies in the evaluated run ending at run_end
@@ -94,7 +95,7 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
                     if (!in_run || dir * (run_end - i) < 0) {
                         const auto run = runs->run(i, dir, dir > 0 ? n : 1);
                         if (run.empty) return dir * (run.last - i) + 1;
-                        run_end = run.last;
+                        run_end = simd::least_run_end(i, dir, run.last, dir > 0 ? n : 1);
                         in_run = true;
                     }
                     if (!win.holds(i)) load_window(i);

@@ -337,10 +337,11 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     };
     if constexpr (Medium::kHasScalar) {
         if (simd != nullptr) {
-            // With SIMD, an evaluated run is split by its batch of ends: a
-            // segment whose two ends both lie below the medium's zero range
-            // has a ramp in that range, so it is (1, 0): skipped too.
-            // Without skipping, the whole ray is one run.
+            // With SIMD, an evaluated run (kLeastRun segments at least) is
+            // split by its batch of ends: a segment whose two ends both lie
+            // below the medium's zero range has a ramp in that range, so it
+            // is (1, 0): skipped too. Without skipping, the whole ray is one
+            // run.
             // The evaluated run's last segment, and whether i lies in it.
             std::int64_t seg_end = s.order == Order::front_to_back ? n : 1;
             bool in_run = es == nullptr;
@@ -384,7 +385,8 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
                     if (!in_run || dir * (seg_end - i) < 0) {
                         const std::int64_t k = next_run(i, dir);
                         if (k > 0) return k;
-                        seg_end = i + dir * (-k - 1);
+                        seg_end = simd::least_run_end(i, dir, i + dir * (-k - 1), dir > 0 ? n : 1);
+                        run_end = dir > 0 ? seg_end : seg_end - 1;  // its last end
                         in_run = true;
                     }
                     if (!win.holds(i - 1) || !win.holds(i))

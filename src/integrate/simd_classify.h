@@ -148,6 +148,23 @@ struct BatchOut {
     alignas(64) double radiance[3][kBatch];
 };
 
+/// The fewest samples (or segment ends) an evaluated run of a skipping
+/// walk covers. A batch costs about as much for the 9 samples of a typical
+/// run in a bone shell as for 16, and finding the next run costs about as
+/// much as a batch (a chain of dependent lookups), so a short run goes on
+/// over what follows it: samples in empty macrocells give (1, 0) anyway,
+/// and those below the zero range are skipped by their bits (docs/
+/// performance.md, "Empty-space skipping").
+inline constexpr std::int64_t kLeastRun = 2 * kBatch;
+
+/// The last index of an evaluated run from i in direction dir (±1) that
+/// ends at `last`, taken on to at least kLeastRun indices but not past
+/// `bound`.
+inline std::int64_t least_run_end(std::int64_t i, int dir, std::int64_t last, std::int64_t bound) {
+    return dir > 0 ? std::min(bound, std::max(last, i + kLeastRun - 1))
+                   : std::max(bound, std::min(last, i - kLeastRun + 1));
+}
+
 /// The samples from lane l of a batch, in direction dir (±1), at most
 /// `avail` of them: k > 0 when the first k are zero (bit set in `zero`),
 /// −k when the first k are not (the skip convention of composite()).
