@@ -256,6 +256,19 @@ TEST(Simd, SplitZeroCountsRunsOfZeroLanes) {
     EXPECT_EQ(simd::split_zero(z, 15, -1, 3), -3);
 }
 
+// An evaluated run of the skipping walk goes on to kLeastRun indices, never
+// past the ray's end in its direction, and a longer run keeps its end.
+TEST(Simd, LeastRunEndCoversKLeastRunWithinTheRay) {
+    const std::int64_t L = simd::kLeastRun;
+    EXPECT_EQ(simd::least_run_end(5, +1, 7, 1000), 5 + L - 1);
+    EXPECT_EQ(simd::least_run_end(5, +1, 5 + L + 3, 1000), 5 + L + 3);  // longer: kept
+    EXPECT_EQ(simd::least_run_end(5, +1, 7, 20), 20);                   // the ray ends first
+    EXPECT_EQ(simd::least_run_end(100, -1, 98, 1), 100 - L + 1);
+    EXPECT_EQ(simd::least_run_end(100, -1, 100 - L - 3, 1), 100 - L - 3);
+    EXPECT_EQ(simd::least_run_end(20, -1, 18, 1), 1);
+    EXPECT_EQ(simd::least_run_end(7, +1, 7, 7), 7);  // the last index
+}
+
 // Blocks of 2³ cells whose nodes all lie below E (simd::active_cells): their
 // bits are clear exactly there (a NaN node sets them), and classify_batch,
 // which stores a vector of samples in clear blocks as zero without
