@@ -148,13 +148,13 @@ struct BatchOut {
     alignas(64) double radiance[3][kBatch];
 };
 
-/// The fewest samples (or segment ends) an evaluated run of a skipping
-/// walk covers. A batch costs about as much for the 9 samples of a typical
-/// run in a bone shell as for 16, and finding the next run costs about as
-/// much as a batch (a chain of dependent lookups), so a short run goes on
-/// over what follows it: samples in empty macrocells give (1, 0) anyway,
-/// and those below the zero range are skipped by their bits (docs/
-/// performance.md, "Empty-space skipping").
+/// The fewest samples (or pre-integrated segments) an evaluated run of a
+/// skipping walk covers. A batch costs about as much for the 9 samples of
+/// a typical run in a bone shell as for 16, and finding the next run costs
+/// about as much as a batch (a chain of dependent lookups), so a short run
+/// goes on over what follows it: samples in empty macrocells give (1, 0)
+/// anyway, and those below the zero range are skipped by their bits
+/// (docs/performance.md, "Empty-space skipping").
 inline constexpr std::int64_t kLeastRun = 2 * kBatch;
 
 /// The last index of an evaluated run from i in direction dir (±1) that
