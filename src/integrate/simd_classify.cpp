@@ -166,9 +166,15 @@ HWY_INLINE V Lerp8(const V* c, V fx, V fy, V fz) {
     return hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0)));
 }
 
+/// The samples stored, x-fastest or in bricks (their aprons included).
+inline std::int64_t stored_nodes(const BatchSource& src) {
+    return src.bricks_x > 0 ? src.bricks_x * src.bricks_y * src.bricks_z * Bricks::kBrickNodes
+                            : src.nx * src.ny * src.nz;
+}
+
 /// Nodes i and i + 1 of a row per lane, at byte offsets `o` of the first
-/// (exact integers): 8- and 16-bit samples from a 32-bit gather (offsets
-/// below 2³¹), float32 from a 64-bit one; as doubles.
+/// (exact integers), x-fastest or in a brick: 8- and 16-bit samples from a
+/// 32-bit gather (offsets below 2³¹), float32 from a 64-bit one; as doubles.
 template <class T>
 HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
     if constexpr (std::is_same_v<T, float>) {
@@ -183,8 +189,7 @@ HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
     } else {
         const hn::Rebind<std::int32_t, D> di;
         const auto last = hn::Set(
-            di,
-            static_cast<std::int32_t>(src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) - 4));
+            di, static_cast<std::int32_t>(stored_nodes(src) * static_cast<std::int64_t>(sizeof(T)) - 4));
         hn::Vec<decltype(di)> l, u;
         gather_pair<T>(di, src, hn::DemoteTo(di, o), last, l, u);
         v[0] = hn::PromoteTo(d, l);
@@ -207,8 +212,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     const std::int64_t sy = (bricked ? Bricks::kNodes : src.nx) * size,
                        sz = sy * (bricked ? Bricks::kNodes : src.ny);
     const std::int64_t rows[4] = {0, sy, sz, sz + sy};
-    const std::int64_t stored =
-        bricked ? src.bricks_x * src.bricks_y * src.bricks_z * Bricks::kBrickNodes : src.nx * src.ny * src.nz;
+    const std::int64_t stored = stored_nodes(src);
     const V bx = hn::Set(d, static_cast<double>(src.nx / 2)),
             by = hn::Set(d, static_cast<double>(src.ny / 2));
     for (std::size_t b = b0; b < b1; b += N) {
@@ -233,7 +237,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
             for (int r = 0; r < 4; ++r)
                 gather_x_pair<T>(d, src, hn::Add(bytes, hn::Set(d, static_cast<double>(rows[r]))), c + 2 * r);
-        } else {
+        } else {  // gather_x_pair's, the offset demoted once for the 4 rows
             const hn::Rebind<std::int32_t, D> di;
             const auto off = hn::DemoteTo(di, bytes);
             const auto last = hn::Set(di, static_cast<std::int32_t>(stored * size - 4));
