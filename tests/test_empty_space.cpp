@@ -215,6 +215,24 @@ TEST(EmptySpace, ScalarImagesAreBitIdenticalWithAndWithoutSkipping) {
                     << to_string(k) << " " << to_string(m) << " " << to_string(o);
 }
 
+// Pixels whose bounds hold no non-empty macrocell take the background
+// without a ray (Renderer::Impl::sees_background): the same bits as
+// compositing nothing, but where it would differ: a −0 component (which
+// compositing front to back turns into +0 inside the volume's outline, not
+// outside it) and the average model (tf.color(0) inside it).
+TEST(EmptySpace, PixelsOutsideTheBoundsKeepTheBackgroundBitForBit) {
+    const Volume v = blobs();
+    for (const Rgb& bg : {Rgb{0.2, 0.3, 0.4}, Rgb{0.2, -0.0, 0.4}, Rgb{-0.0, -0.0, -0.0}})
+        for (auto m : {Model::emission_absorption, Model::average, Model::mip})
+            for (auto o : {Order::front_to_back, Order::back_to_front}) {
+                RenderSettings s = base(IntegratorKind::alpha, m, o);
+                s.background = bg;
+                EXPECT_EQ(compare_scalar(v, blob_tf(), s), 0)
+                    << to_string(m) << " " << to_string(o) << " background " << bg[0] << "," << bg[1] << ","
+                    << bg[2];
+            }
+}
+
 TEST(EmptySpace, AssociatedEmissionJitterAndMidpointsAreBitIdentical) {
     const Volume v = blobs();
     for (auto k : kSkipping)

@@ -286,7 +286,9 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
                     const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
                     double lo = 0, hi = 0;
                     bounds.at(x, y, lo, hi);
-                    const RayResult r = impl_->trace(rays(x, y), offset, lo, hi);
+                    const RayResult r = impl_->sees_background(lo, hi)
+                                            ? RayResult{impl_->bg, 0.0}
+                                            : impl_->trace(rays(x, y), offset, lo, hi);
                     float* p = img.pixel(x, y);
                     for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
                     p[3] = static_cast<float>(r.alpha);

@@ -3,6 +3,8 @@
 // instantiate the ray integrals per sample type in parallel builds.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <functional>
 #include <vector>
 
@@ -101,6 +103,17 @@ struct Renderer::Impl {
     /// macrocells (the integrators over segments of a zero-able medium,
     /// isosurfaces and the average); else none.
     [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera) const;
+
+    /// True where trace() gives the background, alpha 0, for any ray with
+    /// these bounds, whether or not it meets the volume: no sample can lie
+    /// in a non-empty macrocell (the model is not `average`, whose empty
+    /// rays give tf.color(0)), and no background component is −0 (which
+    /// compositing turns into +0). Then the render loop need not make the
+    /// ray at all.
+    [[nodiscard]] bool sees_background(double occupied_lo, double occupied_hi) const {
+        return !(occupied_lo <= occupied_hi) && s.model != Model::average &&
+               std::none_of(bg.begin(), bg.end(), [](double c) { return c == 0.0 && std::signbit(c); });
+    }
 
     /// The ray's result; [occupied_lo, occupied_hi] bounds the t of its
     /// points near non-empty macrocells (RaySpan).
