@@ -2,12 +2,15 @@
 // an analytic sphere, several iso-values composited with their opacities,
 // misses, settings errors.
 #include <cmath>
+#include <cstring>
+#include <random>
 
 #include <gtest/gtest.h>
 
 #include "fathom/error.h"
 #include "fathom/render.h"
 
+#include "integrate/isosurface.h"
 #include "synthetic.h"
 
 using namespace fathom;
@@ -98,4 +101,59 @@ TEST(Isosurface, SettingsAreChecked) {
     s.isosurfaces = {{0.5, {1, 1, 1}, 1.0}};
     EXPECT_NO_THROW(s.validate());
     EXPECT_EQ(parse_model("isosurface", "x"), Model::isosurface);
+}
+
+// The bisection keeps the corners of the last cell (CellCache): every value
+// and every crossing are the bits of GridSampler's lookups, for each sample
+// type, along rays that cross cells in every direction, with brackets down
+// to a few ulp (the midpoint no longer splits them).
+TEST(Isosurface, CachedCellsGiveTheSamplersBitsAndCrossings) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const auto field = [](double x, double y, double z) {
+        return 40.0 * std::sin(0.7 * x + 0.3 * y) + 3.0 * z;
+    };
+    int crossings = 0, tiny = 0;
+    for (DType type : {DType::u8, DType::i16, DType::f32}) {
+        Volume v({13, 11, 9}, type);
+        for (std::int64_t k = 0; k < 9; ++k)
+            for (std::int64_t j = 0; j < 11; ++j)
+                for (std::int64_t i = 0; i < 13; ++i) {
+                    const double f =
+                        field(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+                    v.set_value(i, j, k, type == DType::f32 ? f : std::round(std::abs(f)));
+                }
+        visit_dtype(type, [&]<class T>(T*) {
+            const GridSampler<T> g(v);
+            for (int ray = 0; ray < 200; ++ray) {
+                RaySpan sp{};
+                sp.p0 = {12 * u(rng), 10 * u(rng), 8 * u(rng)};
+                sp.dp = {u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5};
+                const auto plain = [&](double t) { return g(sp.at(t)); };
+                // lookups in any order, near and far, repeated
+                CellCache<T> cached(g, sp);
+                for (int q = 0; q < 50; ++q) {
+                    const double t = q % 7 == 3 ? 0.0 : 6.0 * (u(rng) - 0.5);
+                    const double a = cached(t), b = plain(t);
+                    ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0) << "t " << t;
+                }
+                // crossings of the value at t = 0 between brackets of every size
+                const double lo = -3.0 * u(rng), iso = plain(0.0) + (u(rng) - 0.5);
+                for (double len : {4.0, 0.5, 1e-3, 1e-13}) {
+                    const double hi = lo + len;
+                    const bool below = plain(lo) < iso;
+                    if ((plain(hi) < iso) == below) continue;
+                    for (double tol : {1e-5, 0.0}) {
+                        const double a = bisect_crossing(CellCache<T>(g, sp), lo, hi, tol, iso, below);
+                        const double b = bisect_crossing(plain, lo, hi, tol, iso, below);
+                        ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0) << "bracket " << lo << " + " << len;
+                        ++crossings;
+                        tiny += tol == 0.0 ? 1 : 0;
+                    }
+                }
+            }
+        });
+    }
+    EXPECT_GT(crossings, 300);
+    EXPECT_GT(tiny, 150);
 }

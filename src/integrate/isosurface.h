@@ -36,6 +36,43 @@ inline std::array<double, 2> iso_interval(const std::vector<IsoSurface>& isos, d
     return {lo, hi};
 }
 
+/// Where the scalar f(t) crosses `iso` between t = lo and t = hi (f(lo) <
+/// iso exactly where `below`; f(hi) on the other side): bisection until the
+/// bracket is at most `tol` long or its midpoint no longer splits it; the
+/// last bracket's midpoint.
+template <class F>
+double bisect_crossing(F&& f, double lo, double hi, double tol, double iso, bool below) {
+    while (hi - lo > tol) {
+        const double mid = 0.5 * (lo + hi);
+        if (mid <= lo || mid >= hi) break;
+        ((f(mid) < iso) == below ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/// The scalar along the ray sp (GridSampler's bits) for bisect_crossing:
+/// its points lie within a cell or two, so the corners of the last cell
+/// are kept and a point in it takes only the interpolation.
+template <class T>
+class CellCache {
+public:
+    CellCache(const GridSampler<T>& g, const RaySpan& sp) : g_(g), sp_(sp) {}
+    double operator()(double t) {
+        const GridCell c = g_.cell(sp_.at(t));
+        if (c.base != base_) {
+            base_ = c.base;
+            g_.corners(c, 0, q_);
+        }
+        return GridSampler<T>::interpolate(q_, c);
+    }
+
+private:
+    const GridSampler<T>& g_;
+    const RaySpan& sp_;
+    std::int64_t base_ = -1;
+    double q_[8] = {};
+};
+
 /// The isosurfaces along one ray. The ends 1 .. n − 1 are interpolated
 /// kBatch at a time (scalar_ends: GridSampler's bits), the last at t_far.
 ///
@@ -84,14 +121,8 @@ RayResult trace_isosurfaces(const ScalarMedium<V>& med, const RaySpan& sp, const
         for (std::size_t k = 0; k < isos.size() && k < hits.size(); ++k) {
             const double iso = isos[k].value;
             if ((fa < iso) == (fb < iso)) continue;
-            double lo = ta, hi = tb;
             const bool below = fa < iso;
-            while (hi - lo > tol) {
-                const double mid = 0.5 * (lo + hi);
-                if (mid <= lo || mid >= hi) break;
-                ((f(mid) < iso) == below ? lo : hi) = mid;
-            }
-            hits[nh++] = {0.5 * (lo + hi), k};
+            hits[nh++] = {bisect_crossing(CellCache<V>(med.grid, sp), ta, tb, tol, iso, below), k};
         }
         std::sort(hits.begin(), hits.begin() + static_cast<std::ptrdiff_t>(nh),
                   [](const Hit& a, const Hit& b) { return a.t < b.t; });

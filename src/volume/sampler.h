@@ -46,17 +46,32 @@ struct GridSampler {
         return c;
     }
 
-    /// Component `comp` of the trilinear interpolant inside a located cell.
-    [[nodiscard]] double interpolate(const GridCell& c, int comp = 0) const {
+    /// Component `comp` at the eight corners of a located cell, x fastest:
+    /// (0,0,0), (1,0,0), (0,1,0), (1,1,0), (0,0,1), … (as doubles).
+    void corners(const GridCell& c, int comp, double* out) const {
         const std::int64_t sx = comps, sy = comps * nx, sz = comps * nx * ny;
         const T* q = data + c.base * comps + comp;
-        const double c00 = q[0] + c.fx * (static_cast<double>(q[sx]) - q[0]);
-        const double c10 = q[sy] + c.fx * (static_cast<double>(q[sy + sx]) - q[sy]);
-        const double c01 = q[sz] + c.fx * (static_cast<double>(q[sz + sx]) - q[sz]);
-        const double c11 = q[sz + sy] + c.fx * (static_cast<double>(q[sz + sy + sx]) - q[sz + sy]);
+        const std::int64_t at[8] = {0, sx, sy, sy + sx, sz, sz + sx, sz + sy, sz + sy + sx};
+        for (int i = 0; i < 8; ++i) out[i] = static_cast<double>(q[at[i]]);
+    }
+
+    /// The trilinear interpolant of corners q (as corners() orders them) at
+    /// the fractions of cell c.
+    [[nodiscard]] static double interpolate(const double* q, const GridCell& c) {
+        const double c00 = q[0] + c.fx * (q[1] - q[0]);
+        const double c10 = q[2] + c.fx * (q[3] - q[2]);
+        const double c01 = q[4] + c.fx * (q[5] - q[4]);
+        const double c11 = q[6] + c.fx * (q[7] - q[6]);
         const double c0 = c00 + c.fy * (c10 - c00);
         const double c1 = c01 + c.fy * (c11 - c01);
         return c0 + c.fz * (c1 - c0);
+    }
+
+    /// Component `comp` of the trilinear interpolant inside a located cell.
+    [[nodiscard]] double interpolate(const GridCell& c, int comp = 0) const {
+        double q[8];
+        corners(c, comp, q);
+        return interpolate(q, c);
     }
 
     [[nodiscard]] double operator()(const Vec3& p, int comp = 0) const { return interpolate(cell(p), comp); }
