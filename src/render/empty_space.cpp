@@ -293,6 +293,7 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         col[a] = {dot(e, basis[0]), dot(e, basis[1]), dot(e, basis[2])};
     }
     const double m = PixelBounds::kMargin;
+    constexpr double kPixelSlack = 1.0 / 16;
     auto corner = [&](const std::array<double, 3>& lo, const std::array<double, 3>& hi, int k) {
         Vec3 c = c0;
         for (int a = 0; a < 3; ++a) c += col[a] * (((k >> a) & 1) != 0 ? hi[a] : lo[a]);
@@ -317,14 +318,13 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
     const double slack = 1e-6 * extent;  // far above the rounding of t here and in the integrators
     const double aspect = static_cast<double>(width) / height;
     const double tan_half = std::tan(camera.fov_y_deg * std::numbers::pi / 360.0);
-    // Pixel coordinates of a point in camera coordinates: Camera::generate
-    // solved for (px, py).
-    auto pixel = [&](const Vec3& c, double& px, double& py) {
-        const double x = perspective ? c.x / (c.z * tan_half) : c.x / (camera.height / 2.0);
-        const double y = perspective ? c.y / (c.z * tan_half) : c.y / (camera.height / 2.0);
-        px = (x / aspect + 1.0) * width / 2.0 - 0.5;
-        py = (1.0 - y) * height / 2.0 - 0.5;
-    };
+    // Pixel coordinates of a point c in camera coordinates (Camera::generate
+    // solved for (px, py)): px = c.x·s·scale_x + bx, py = by − c.y·s·scale_y with
+    // s = 1/c.z (perspective) or 1 (orthographic); rounding differs from
+    // the solved form by far less than kPixelSlack.
+    const double scale_x = perspective ? width / (2.0 * aspect * tan_half) : width / (aspect * camera.height);
+    const double scale_y = perspective ? height / (2.0 * tan_half) : height / camera.height;
+    const double bx = width / 2.0 - 0.5, by = height / 2.0 - 0.5;
     // The footprint of border_[b] (x0 > x1 or y0 > y1: off the image).
     auto project = [&](std::size_t b) {
         std::int64_t i = border_[b];
@@ -335,21 +335,24 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
             lo[a] = static_cast<double>(ma << shift_) - m;
             hi[a] = static_cast<double>(std::min((ma + 1) << shift_, nodes_[a] - 1)) + m;
         }
+        // corner k = the first + the edges whose bits k has
+        const Vec3 first = corner(lo, hi, 0);
+        const Vec3 edge[3] = {col[0] * (hi[0] - lo[0]), col[1] * (hi[1] - lo[1]), col[2] * (hi[2] - lo[2])};
         double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
-        double z0 = INFINITY, z1 = -INFINITY, far = 0.0;
-        Vec3 mid{0, 0, 0};
+        double z0 = INFINITY, z1 = -INFINITY, far2 = 0.0;
         for (int k = 0; k < 8; ++k) {
-            const Vec3 c = corner(lo, hi, k);
-            double px = 0, py = 0;
-            pixel(c, px, py);
+            Vec3 c = first;
+            for (int a = 0; a < 3; ++a)
+                if (((k >> a) & 1) != 0) c += edge[a];
+            const double s = perspective ? 1.0 / c.z : 1.0;
+            const double px = c.x * s * scale_x + bx, py = by - c.y * s * scale_y;
             x0 = std::min(x0, px);
             x1 = std::max(x1, px);
             y0 = std::min(y0, py);
             y1 = std::max(y1, py);
             z0 = std::min(z0, c.z);
             z1 = std::max(z1, c.z);
-            far = std::max(far, length(c));
-            mid += c * 0.125;
+            far2 = std::max(far2, dot(c, c));
         }
         // t along a ray: its camera depth (orthographic), or
         // the distance from the eye (perspective: at least
@@ -357,21 +360,22 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         // the half diagonal; at most the farthest corner's).
         double t0 = z0, t1 = z1;
         if (perspective) {
-            const Vec3 half = corner(lo, hi, 7) - mid;
-            t0 = std::max(z0, length(mid) - length(half));
-            t1 = far;
+            const Vec3 half = (edge[0] + edge[1] + edge[2]) * 0.5;
+            t0 = std::max(z0, length(first + half) - length(half));
+            t1 = std::sqrt(far2);
         }
         if (!std::isfinite(x0 + x1 + y0 + y1 + t0 + t1))  // no bound
             return Footprint{0, width - 1, 0, height - 1, -INFINITY, INFINITY};
         Footprint f{};
-        // pixels whose centres may fall in the box's image, one more each side
+        // the pixels whose centres fall in the box's image (pixel x's ray
+        // projects to x exactly, up to rounding far below kPixelSlack)
         auto clip = [](double v, int n) {
             return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(n)));
         };
-        f.x0 = std::max(0, clip(std::floor(x0) - 1.0, width));
-        f.x1 = std::min(width - 1, clip(std::ceil(x1) + 1.0, width));
-        f.y0 = std::max(0, clip(std::floor(y0) - 1.0, height));
-        f.y1 = std::min(height - 1, clip(std::ceil(y1) + 1.0, height));
+        f.x0 = std::max(0, clip(std::ceil(x0 - kPixelSlack), width));
+        f.x1 = std::min(width - 1, clip(std::floor(x1 + kPixelSlack), width));
+        f.y0 = std::max(0, clip(std::ceil(y0 - kPixelSlack), height));
+        f.y1 = std::min(height - 1, clip(std::floor(y1 + kPixelSlack), height));
         f.lo = round_float(t0 - slack, true);
         f.hi = round_float(t1 + slack, false);
         return f;
