@@ -45,6 +45,25 @@ void render(benchmark::State& state, fathom::IntegratorKind kind) {
                                                     benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// Two isosurfaces of the same volume, the outer one translucent: rays cross
+// it twice and stop at the inner one, so most of the frame refines crossings
+// (isosurface.h's bisection) and shades them.
+void render_isosurfaces(benchmark::State& state) {
+    static const fathom::Volume vol = make_volume();
+    const auto tf = fathom::TransferFunction::preset("ct-soft-tissue", {0.0, 255.0});
+    fathom::RenderSettings s;
+    s.width = s.height = static_cast<int>(state.range(0));
+    s.model = fathom::Model::isosurface;
+    s.isosurfaces = {{100.0, {1.0, 0.6, 0.5}, 0.4}, {200.0, {1, 1, 1}, 1.0}};
+    s.threads = 1;
+    const fathom::Renderer r(vol, tf, s);
+    const auto b = fathom::volume_bounds(vol);
+    const auto cam = fathom::Camera::orbit(30, 20, 3, b.center, b.radius);
+    for (auto _ : state) benchmark::DoNotOptimize(r.render(cam));
+    state.counters["pixels/s"] = benchmark::Counter(static_cast<double>(s.width) * s.height,
+                                                    benchmark::Counter::kIsIterationInvariantRate);
+}
+
 // Exact pre-integration table of a 256-point transfer function (256² entries).
 void table_build(benchmark::State& state) {
     fathom::TransferFunction tf;
@@ -186,6 +205,7 @@ BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::preintegrated_simple, t
 BENCHMARK(table_build)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(render, alpha, fathom::IntegratorKind::alpha)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, riemann, fathom::IntegratorKind::riemann)->Arg(256)->Unit(benchmark::kMillisecond);
+BENCHMARK(render_isosurfaces)->Arg(256)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(render, reference, fathom::IntegratorKind::reference)
     ->Arg(64)
     ->Unit(benchmark::kMillisecond);
