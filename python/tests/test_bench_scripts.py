@@ -44,3 +44,47 @@ def test_passes_are_merged_keeping_the_shortest_median(tmp_path):
     assert "| 0.190 s | 0.100 s | 1.90× |" in text  # scaling from the kept rows
     assert "| 0.300 s | 0.100 s | 3.00× |" in text  # skipping likewise
     assert "0.150 s" not in text
+
+
+def fake_fathom(path, seconds):
+    """A stand-in for `fathom` whose `bench --json FILE` reports the next of `seconds`
+    and appends its name to calls.log beside it."""
+    state = path.with_suffix(".n")
+    log = path.parent / "calls.log"
+    path.write_text(f"""#!{sys.executable}
+import json, sys
+times = {seconds!r}
+n = int(open({str(state)!r}).read()) if __import__("os").path.exists({str(state)!r}) else 0
+open({str(state)!r}, "w").write(str(n + 1))
+open({str(log)!r}, "a").write({path.name!r} + "\\n")
+assert sys.argv[1] == "bench" and "--preset" in sys.argv
+json.dump({{"median_seconds": times[n]}}, open(sys.argv[sys.argv.index("--json") + 1], "w"))
+""")
+    path.chmod(0o755)
+    return str(path)
+
+
+def ab(*args):
+    return subprocess.run([sys.executable, str(ROOT / "bench" / "ab.py"), *args], capture_output=True, text=True)
+
+
+def test_ab_alternates_the_builds_and_takes_the_median_ratio(tmp_path):
+    base = fake_fathom(tmp_path / "base", [0.120, 0.130, 0.119])
+    new = fake_fathom(tmp_path / "new", [0.100, 0.100, 0.119])
+    out = ab(base, new, "--pairs", "3", "--", "--volume", "v.nrrd", "--preset", "ct-bone")
+    assert out.returncode == 0, out.stderr
+    assert "base 0.120 / 0.130 / 0.119 s" in out.stdout
+    assert "new  0.100 / 0.100 / 0.119 s" in out.stdout
+    assert "per pair 1.20 / 1.30 / 1.00; median 1.20x" in out.stdout
+    assert (tmp_path / "calls.log").read_text().split() == ["base", "new"] * 3
+
+
+def test_ab_reports_a_failing_build_and_needs_the_separator(tmp_path):
+    base = fake_fathom(tmp_path / "base", [0.1])
+    broken = tmp_path / "broken"
+    broken.write_text("#!/bin/sh\necho 'fathom: bench: no such volume' >&2\nexit 1\n")
+    broken.chmod(0o755)
+    out = ab(base, str(broken), "--", "--preset", "ct-bone")
+    assert out.returncode != 0
+    assert "no such volume" in out.stderr
+    assert ab(base, base, "--preset", "ct-bone").returncode != 0
