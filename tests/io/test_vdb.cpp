@@ -4,6 +4,7 @@
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -30,6 +31,14 @@ using fathom::test::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
+
+// The reader runs OpenVDB in a forked child (src/io/vdb_reader.cpp), and fork
+// copies only the calling thread. TBB worker threads started in this process
+// (OpenVDB's tree statistics, when these tests write and check their
+// fixtures) would leave the child's TBB waiting on them forever: about one
+// run in a few hundred hung in `spawn` so. fathom's own processes never run
+// TBB before they fork; this one keeps TBB on its calling thread.
+const tbb::global_control kOneThread(tbb::global_control::max_allowed_parallelism, 1);
 
 const char* const kCloud = "vdb_wdas_cloud/wdas_cloud_sixteenth.vdb";
 const char* const kDragon = "vdb_wdas_cloud/dragon_fog_vpt.vdb";
