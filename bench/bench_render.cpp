@@ -30,12 +30,12 @@ fathom::Volume make_volume() {
     return v;
 }
 
-void render(benchmark::State& state, fathom::IntegratorKind kind) {
+// Frames of the synthetic volume (ct-soft-tissue, one thread) with settings
+// `s` at the benchmark's image size.
+void time_frames(benchmark::State& state, fathom::RenderSettings s) {
     static const fathom::Volume vol = make_volume();
     const auto tf = fathom::TransferFunction::preset("ct-soft-tissue", {0.0, 255.0});
-    fathom::RenderSettings s;
     s.width = s.height = static_cast<int>(state.range(0));
-    s.integrator = kind;
     s.threads = 1;
     const fathom::Renderer r(vol, tf, s);
     const auto b = fathom::volume_bounds(vol);
@@ -45,23 +45,20 @@ void render(benchmark::State& state, fathom::IntegratorKind kind) {
                                                     benchmark::Counter::kIsIterationInvariantRate);
 }
 
+void render(benchmark::State& state, fathom::IntegratorKind kind) {
+    fathom::RenderSettings s;
+    s.integrator = kind;
+    time_frames(state, s);
+}
+
 // Two isosurfaces of the same volume, the outer one translucent: rays cross
 // it twice and stop at the inner one, so most of the frame refines crossings
 // (isosurface.h's bisection) and shades them.
 void render_isosurfaces(benchmark::State& state) {
-    static const fathom::Volume vol = make_volume();
-    const auto tf = fathom::TransferFunction::preset("ct-soft-tissue", {0.0, 255.0});
     fathom::RenderSettings s;
-    s.width = s.height = static_cast<int>(state.range(0));
     s.model = fathom::Model::isosurface;
     s.isosurfaces = {{100.0, {1.0, 0.6, 0.5}, 0.4}, {200.0, {1, 1, 1}, 1.0}};
-    s.threads = 1;
-    const fathom::Renderer r(vol, tf, s);
-    const auto b = fathom::volume_bounds(vol);
-    const auto cam = fathom::Camera::orbit(30, 20, 3, b.center, b.radius);
-    for (auto _ : state) benchmark::DoNotOptimize(r.render(cam));
-    state.counters["pixels/s"] = benchmark::Counter(static_cast<double>(s.width) * s.height,
-                                                    benchmark::Counter::kIsIterationInvariantRate);
+    time_frames(state, s);
 }
 
 // Exact pre-integration table of a 256-point transfer function (256² entries).

@@ -216,7 +216,7 @@ TEST(EmptySpace, ScalarImagesAreBitIdenticalWithAndWithoutSkipping) {
 }
 
 // Pixels whose bounds hold no non-empty macrocell take the background
-// without a ray (Renderer::Impl::sees_background): the same bits as
+// without a ray (Renderer::Impl::empty_rays_see_background): the same bits as
 // compositing nothing, but where it would differ: a −0 component (which
 // compositing front to back turns into +0 inside the volume's outline, not
 // outside it) and the average model (tf.color(0) inside it).

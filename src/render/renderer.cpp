@@ -263,6 +263,7 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
         img.first_hit.assign(img.rgba.size() / 4, INFINITY);
     }
     const PixelBounds bounds = impl_->pixel_bounds(camera);
+    const bool empty_is_background = impl_->empty_rays_see_background();
     const PixelRays rays(camera, s.width, s.height);
     constexpr int kTile = 16;
     const int tx = (s.width + kTile - 1) / kTile, ty = (s.height + kTile - 1) / kTile;
@@ -286,7 +287,7 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
                     const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
                     double lo = 0, hi = 0;
                     bounds.at(x, y, lo, hi);
-                    const RayResult r = impl_->sees_background(lo, hi)
+                    const RayResult r = empty_is_background && !(lo <= hi)
                                             ? RayResult{impl_->bg, 0.0}
                                             : impl_->trace(rays(x, y), offset, lo, hi);
                     float* p = img.pixel(x, y);

@@ -104,14 +104,14 @@ struct Renderer::Impl {
     /// isosurfaces and the average); else none.
     [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera) const;
 
-    /// True where trace() gives the background, alpha 0, for any ray with
-    /// these bounds, whether or not it meets the volume: no sample can lie
-    /// in a non-empty macrocell (the model is not `average`, whose empty
-    /// rays give tf.color(0)), and no background component is −0 (which
-    /// compositing turns into +0). Then the render loop need not make the
-    /// ray at all.
-    [[nodiscard]] bool sees_background(double occupied_lo, double occupied_hi) const {
-        return !(occupied_lo <= occupied_hi) && s.model != Model::average &&
+    /// True where trace() gives the background, alpha 0, for every ray whose
+    /// bounds hold no non-empty macrocell (occupied_lo > occupied_hi),
+    /// whether or not it meets the volume: the model is not `average`, whose
+    /// empty rays give tf.color(0), and no background component is −0
+    /// (which compositing turns into +0). Then the render loop need not make
+    /// such a ray at all.
+    [[nodiscard]] bool empty_rays_see_background() const {
+        return s.model != Model::average &&
                std::none_of(bg.begin(), bg.end(), [](double c) { return c == 0.0 && std::signbit(c); });
     }
 
