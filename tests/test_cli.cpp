@@ -229,7 +229,19 @@ TEST(Cli, BenchReportsFrameTimesAsJson) {
     EXPECT_DOUBLE_EQ(j["first_image_seconds"].get<double>(), j["load_seconds"].get<double>() +
                                                                  j["setup_seconds"].get<double>() +
                                                                  j["first_seconds"].get<double>());
-    EXPECT_EQ(j["bricks"], false);  // below RenderSettings::brick_min_bytes
+    EXPECT_EQ(j["bricks"], false);       // below RenderSettings::brick_min_bytes
+    EXPECT_EQ(j["macrocell_cells"], 0);  // every sample above 0 is visible: no empty macrocell
+    // the bundled chest CT under ct-bone: empty macrocells of 2³ cells (a
+    // lattice below RenderSettings::fine_macrocells_max)
+    const std::string chest = (fathom::test::source_dir() / "data" / "lidc2.nrrd").string();
+    ASSERT_EQ(
+        fathom_cli("bench --volume " + chest + " --preset ct-bone --frames 1 --width 8 --height 8 --json " +
+                       (d / "c.json").string(),
+                   d)
+            .status,
+        0);
+    std::ifstream chest_json(d / "c.json");
+    EXPECT_EQ(nlohmann::json::parse(chest_json)["macrocell_cells"], 2);
     EXPECT_GT(j["volume_bytes"].get<double>(), 0.0);
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 1 --no-bricks", d).status, 0);
     EXPECT_EQ(fathom_cli("bench " + (d / "scene.json").string() + " --frames 0", d).status, 2);

@@ -68,15 +68,18 @@ RenderSettings base(IntegratorKind k, Model m, Order o) {
     return s;
 }
 
-// Renders with skipping on and off; returns the number of differing images.
+// Renders with skipping off and on, by the renderer's choice of macrocells
+// (2³ on the blobs) and by 4³; returns the number of differing images.
 int compare_scalar(const Volume& v, const TransferFunction& tf, RenderSettings s) {
     int bad = 0;
     for (const Camera& cam : cameras(v)) {
-        s.skip_empty = true;
-        const Image on = Renderer(v, tf, s).render(cam);
         s.skip_empty = false;
         const Image off = Renderer(v, tf, s).render(cam);
-        if (!same_pixels(on, off)) ++bad;
+        s.skip_empty = true;
+        for (const std::uint64_t fine : {RenderSettings{}.fine_macrocells_max, std::uint64_t{0}}) {
+            s.fine_macrocells_max = fine;
+            if (!same_pixels(Renderer(v, tf, s).render(cam), off)) ++bad;
+        }
     }
     return bad;
 }
@@ -279,6 +282,62 @@ TEST(EmptySpace, PreclassifiedGridImagesAreBitIdentical) {
                 EXPECT_TRUE(same_pixels(on, off)) << to_string(k) << " " << to_string(o);
             }
         }
+}
+
+// EmptySpace::empty_share_in_pairs over 4³ macrocells of 2³ cells (nodes
+// 0..8 per axis): a node inside macrocell (0, 0, 0) leaves its 7 neighbours
+// of the group empty (7/8); one more at the far corner, in macrocell
+// (3, 3, 3), adds a group of the same share; a node on the corner that 8
+// macrocells share fills the first group (7/16).
+TEST(EmptySpace, EmptySharesInPairsCountTheGroupsWithANonEmptyMacrocell) {
+    Volume v({9, 9, 9}, DType::f32);
+    EXPECT_EQ(EmptySpace::for_zeros(v, 1, 1).empty_share_in_pairs(), 0.0);  // nothing non-empty
+    v.set_value(1, 1, 1, 1.0);
+    EXPECT_EQ(EmptySpace::for_zeros(v, 1, 1).empty_share_in_pairs(), 7.0 / 8);
+    v.set_value(8, 8, 8, 1.0);
+    EXPECT_EQ(EmptySpace::for_zeros(v, 1, 1).empty_share_in_pairs(), 14.0 / 16);
+    v.set_value(2, 2, 2, 1.0);
+    EXPECT_EQ(EmptySpace::for_zeros(v, 1, 1).empty_share_in_pairs(), 7.0 / 16);
+    // an odd count of macrocells per axis: the last group is clipped (3 × 4 × 4 macrocells)
+    Volume w({7, 9, 9}, DType::f32);
+    w.set_value(5, 1, 1, 1.0);  // macrocell (2, 0, 0): its group holds 1 × 2 × 2
+    EXPECT_EQ(EmptySpace::for_zeros(w, 1, 1).empty_share_in_pairs(), 3.0 / 4);
+}
+
+// The renderer skips by 2³ macrocells up to RenderSettings::
+// fine_macrocells_max of them (the blobs' 36×28×44 cells: 18×14×22 = 5544)
+// where they skip a quarter of what 4³ ones would evaluate (the blobs:
+// more), by 4³ otherwise; the average keeps 4³, and mip skips by ranges
+// only.
+TEST(EmptySpace, RendererTakesFineMacrocellsWhereTheyPay) {
+    const Volume v = blobs();
+    const Classifier c(blob_tf(), v.smallest_spacing());
+    EXPECT_GE(EmptySpace::for_scalar(v, c, Model::emission_absorption, 1, 1).empty_share_in_pairs(), 0.25);
+    RenderSettings s = base(IntegratorKind::alpha, Model::emission_absorption, Order::front_to_back);
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 2);  // the default limit
+    s.fine_macrocells_max = 18 * 14 * 22;
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 2);
+    s.fine_macrocells_max -= 1;
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 4);
+    s.fine_macrocells_max = RenderSettings{}.fine_macrocells_max;
+    s.model = Model::isosurface;
+    s.isosurfaces = {{0.5, {1, 1, 1}, 1.0}};
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 2);
+    s.model = Model::average;
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 4);
+    s.model = Model::mip;
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 0);
+    s.model = Model::emission_absorption;
+    s.skip_empty = false;
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 0);
+    // visible below x = 20, empty beyond: 4³ macrocells skip as much as 2³
+    const Volume half = make_volume(37, 29, 45, [](double x, double, double) { return x < 20 ? 0.5 : 0.0; });
+    const Classifier ch(blob_tf(), half.smallest_spacing());
+    const EmptySpace fine = EmptySpace::for_scalar(half, ch, Model::emission_absorption, 1, 1);
+    ASSERT_TRUE(fine.any());
+    EXPECT_LT(fine.empty_share_in_pairs(), 0.25);
+    s.skip_empty = true;
+    EXPECT_EQ(Renderer(half, blob_tf(), s).macrocell_cells(), 4);
 }
 
 // A small blob in a large box: far from it, a ray crosses a whole box of

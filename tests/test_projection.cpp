@@ -95,9 +95,12 @@ int compare(const Volume& v, const TransferFunction& tf, RenderSettings s, doubl
             s.skip_empty = false;
             s.simd = false;
             const Image plain = Renderer(v, tf, s).render(cam);
-            for (int variant = 1; variant < 4; ++variant) {
-                s.skip_empty = (variant & 1) != 0;
-                s.simd = (variant & 2) != 0;
+            // skipping and SIMD on and off; skipping by the renderer's
+            // choice of macrocells and by 4³
+            for (int variant = 1; variant < 6; ++variant) {
+                s.skip_empty = variant != 2;
+                s.simd = variant >= 2 && variant != 4;
+                s.fine_macrocells_max = variant >= 4 ? 0 : RenderSettings{}.fine_macrocells_max;
                 if (!same(Renderer(v, tf, s).render(cam), plain)) ++bad;
             }
         }
@@ -273,7 +276,7 @@ TEST(Projection, IsoIntervalHoldsExactlyTheScalarsOnTheSameSides) {
 // Rays from the top face to the bottom face of a lattice 360 cells high
 // (spacing 0.5 along z, 0.337891 across, as the shared CT bunny), tilted
 // 5–9° so that a step of 6 voxels divides each into 90 segments of 4 cells
-// along z: the ends lie near macrocell faces, where rounding can carry two
+// along z (3 voxels: 180 of 2 cells): the ends lie near macrocell faces, where rounding can carry two
 // consecutive ends across a macrocell, here across those that straddle the
 // iso-value between layers above and below it. The walk of
 // EmptySpace::for_isosurfaces must not take such steps (its sides hold
@@ -287,27 +290,34 @@ TEST(Projection, IsosurfaceStepsOfAMacrocellEdgeAreExact) {
         for (std::int64_t j = 0; j < n[1]; ++j)
             for (std::int64_t i = 0; i < n[0]; ++i) v.set_value(i, j, k, layer[k % 16]);
     v.set_spacing({0.337891, 0.337891, 0.5});
-    RenderSettings s;
-    s.model = Model::isosurface;
-    s.isosurfaces = {{100, {1, 1, 1}, 0.1}};
-    s.step = 6.0;
-    s.width = s.height = 8;
-    const TransferFunction tf = ramp_tf(v);
-    s.skip_empty = true;
-    const Renderer on(v, tf, s);
-    s.skip_empty = false;
-    const Renderer off(v, tf, s);
-    int differ = 0, hits = 0;
-    for (int a = 0; a < 60; ++a)
-        for (int b = 0; b < 20; ++b) {
-            const double theta = (5.0 + 4.0 * a / 60.0) * std::numbers::pi / 180.0;
-            const double phi = (5.0 + 80.0 * b / 20.0) * std::numbers::pi / 180.0;
-            const Vec3 d{std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), -std::cos(theta)};
-            const Vec3 entry{1.5 + 0.01 * b, 1.5 + 0.01 * a, 180.0};
-            const RayResult x = on.trace({entry - d * 10.0, d}), y = off.trace({entry - d * 10.0, d});
-            differ += x.radiance != y.radiance || x.depth != y.depth ? 1 : 0;
-            hits += y.alpha > 0 ? 1 : 0;
-        }
-    EXPECT_EQ(differ, 0);
-    EXPECT_GT(hits, 1000);
+    // 4³ macrocells with steps of 4 cells along z, and 2³ (the renderer's
+    // choice on these layers) with steps of 2 cells
+    for (const double step : {6.0, 3.0}) {
+        RenderSettings s;
+        s.model = Model::isosurface;
+        s.isosurfaces = {{100, {1, 1, 1}, 0.1}};
+        s.step = step;
+        s.width = s.height = 8;
+        if (step == 6.0) s.fine_macrocells_max = 0;
+        const TransferFunction tf = ramp_tf(v);
+        s.skip_empty = true;
+        const Renderer on(v, tf, s);
+        ASSERT_EQ(on.macrocell_cells(), step == 6.0 ? 4 : 2);
+        s.skip_empty = false;
+        const Renderer off(v, tf, s);
+        int differ = 0, hits = 0;
+        for (int a = 0; a < 60; ++a)
+            for (int b = 0; b < 20; ++b) {
+                const double theta = (5.0 + 4.0 * a / 60.0) * std::numbers::pi / 180.0;
+                const double phi = (5.0 + 80.0 * b / 20.0) * std::numbers::pi / 180.0;
+                const Vec3 d{std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                             -std::cos(theta)};
+                const Vec3 entry{1.5 + 0.01 * b, 1.5 + 0.01 * a, 180.0};
+                const RayResult x = on.trace({entry - d * 10.0, d}), y = off.trace({entry - d * 10.0, d});
+                differ += x.radiance != y.radiance || x.depth != y.depth ? 1 : 0;
+                hits += y.alpha > 0 ? 1 : 0;
+            }
+        EXPECT_EQ(differ, 0) << "step " << step;
+        EXPECT_GT(hits, 1000) << "step " << step;
+    }
 }

@@ -141,6 +141,13 @@ struct RenderSettings {
     /// bit for bit. 64 MiB by default: smaller
     /// volumes stay in cache well enough (docs/performance.md "Bricks").
     std::uint64_t brick_min_bytes = std::uint64_t{64} << 20;
+    /// The optical models and isosurfaces may skip by macrocells of 2³
+    /// cells where the lattice has at most this many of them (and they
+    /// would skip a quarter or more of what 4³ ones evaluate), else by 4³;
+    /// the image is unchanged bit for bit. 2²² by default (a 320³ volume):
+    /// on larger volumes their tables outgrow the caches and cost memory
+    /// (docs/performance.md "Empty-space skipping"). 0 keeps 4³ everywhere.
+    std::uint64_t fine_macrocells_max = std::uint64_t{1} << 22;
 
     /// I_bg as the contract resolves it.
     [[nodiscard]] Rgb background_radiance() const;
@@ -183,6 +190,10 @@ public:
     [[nodiscard]] const RenderSettings& settings() const;
     /// Whether the renderer samples its volume from bricks.
     [[nodiscard]] bool bricked() const;
+    /// Cells per edge of the macrocells its rays skip by (2 or 4; see
+    /// RenderSettings::fine_macrocells_max), or 0 where they skip by none
+    /// (skipping off, nothing empty, or the projections' ranges alone).
+    [[nodiscard]] int macrocell_cells() const;
     /// The ray integral of one ray (world-space origin and unit direction).
     [[nodiscard]] RayResult trace(const Ray& ray) const;
     /// The whole image; tiles over threads; the result does not depend on

@@ -421,6 +421,25 @@ double EmptySpace::empty_fraction() const {
     return static_cast<double>(n) / static_cast<double>(empty_.size());
 }
 
+double EmptySpace::empty_share_in_pairs() const {
+    std::int64_t total = 0, empty = 0;
+    for (std::int64_t gz = 0; gz < dims_[2]; gz += 2)
+        for (std::int64_t gy = 0; gy < dims_[1]; gy += 2)
+            for (std::int64_t gx = 0; gx < dims_[0]; gx += 2) {
+                std::int64_t n = 0, e = 0;
+                for (std::int64_t z = gz; z < std::min(gz + 2, dims_[2]); ++z)
+                    for (std::int64_t y = gy; y < std::min(gy + 2, dims_[1]); ++y)
+                        for (std::int64_t x = gx; x < std::min(gx + 2, dims_[0]); ++x) {
+                            ++n;
+                            e += empty_[index({x, y, z})];
+                        }
+                if (e == n) continue;  // an empty group: a coarser macrocell skips it too
+                total += n;
+                empty += e;
+            }
+    return total == 0 ? 0.0 : static_cast<double>(empty) / static_cast<double>(total);
+}
+
 double EmptySpace::inactive_share(const std::vector<std::uint32_t>& blocks) const {
     // blocks per axis, ⌊nodes / 2⌋ as simd::active_cells counts them
     const std::int64_t bx = nodes_[0] / 2, by = nodes_[1] / 2, bz = nodes_[2] / 2;

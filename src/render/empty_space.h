@@ -102,6 +102,8 @@ public:
     MacrocellLattice(const Volume& v, int shift);
     /// Macrocells per axis.
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
+    /// Cells per macrocell edge (2^shift).
+    [[nodiscard]] int edge() const { return 1 << shift_; }
     /// The longest step along an index axis (cells) after which the
     /// computed position of the next sample still lies in a macrocell
     /// touching the last one: a macrocell edge less a cell (a step of a
@@ -161,6 +163,11 @@ public:
     /// (the shift must be at least 1) whose bit in `blocks` is clear:
     /// simd::active_cells's bits of this lattice. 0 without non-empty ones.
     [[nodiscard]] double inactive_share(const std::vector<std::uint32_t>& blocks) const;
+    /// The share of empty macrocells in the groups of 2×2×2 of them (from
+    /// macrocell 0, clipped to the grid) that hold a non-empty one: about
+    /// what macrocells of twice the edge would evaluate and these skip. 0
+    /// without non-empty ones.
+    [[nodiscard]] double empty_share_in_pairs() const;
 
     /// The frame's PixelBounds for `camera` and a width × height image of a
     /// lattice placed by `axes` (index → world) and `origin`: the box of
