@@ -819,7 +819,9 @@ void DiffRenderer::skip_empty_where(const Volume& occupied) {
     impl_->skip = false;
     impl_->base.empty_space = {};
     const IntegratorKind k = impl_->base.s.integrator;
-    const int shift = k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;  // as Renderer
+    // 4³ for point samples, 8³ for segments (the pruned blocks are 4³ cells;
+    // docs/reverse-rendering.md)
+    const int shift = k == IntegratorKind::riemann || k == IntegratorKind::alpha ? 2 : 3;
     impl_->base.empty_space = EmptySpace::for_zeros(occupied, shift, impl_->base.s.threads);
     impl_->skip = impl_->base.empty_space.any();
 }
