@@ -45,7 +45,7 @@ constexpr int kMacrocellShift = 2;
 /// lattice has at most s.fine_macrocells_max of them and at least this share
 /// of the 2×2×2 groups of them that hold a non-empty one is empty
 /// (EmptySpace::empty_share_in_pairs: what 4³ macrocells would evaluate and
-/// 2³ skip), else by 4³. Frames with 2³ measured 1.06–1.23× at shares of
+/// 2³ skip), else by 4³. Frames with 2³ measured 1.05–1.23× at shares of
 /// 0.29–0.51, the same at 0.24, and 0.94–0.96× at 0.09 (docs/performance.md,
 /// "Empty-space skipping"). The average and pre-classified grids keep 4³
 /// (2³ was 0.7–0.9× for the average).
