@@ -4,6 +4,7 @@
 // and medium it applies to.
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -302,6 +303,45 @@ TEST(EmptySpace, EmptySharesInPairsCountTheGroupsWithANonEmptyMacrocell) {
     Volume w({7, 9, 9}, DType::f32);
     w.set_value(5, 1, 1, 1.0);  // macrocell (2, 0, 0): its group holds 1 × 2 × 2
     EXPECT_EQ(EmptySpace::for_zeros(w, 1, 1).empty_share_in_pairs(), 3.0 / 4);
+}
+
+// EmptySpace::coarser: where every empty range lies below E, macrocells of
+// twice the edge made from 8 of them are the ones for_scalar classifies,
+// flag for flag, with the same pixel bounds: three models, a NaN node,
+// and 2³ macrocells whose count along each axis is odd (clipped groups).
+TEST(EmptySpace, CoarserMacrocellsAreTheirOwnClassification) {
+    Volume v = make_volume(39, 31, 43, [](double x, double y, double z) {
+        const double d = std::sqrt((x - 12) * (x - 12) + (y - 20) * (y - 20) + (z - 30) * (z - 30));
+        return std::max(0.0, 1.0 - d / 8.0) + (x + y > 60 ? 0.5 : 0.0);
+    });
+    v.set_value(30, 5, 8, std::numeric_limits<double>::quiet_NaN());
+    const Classifier c(blob_tf(), v.smallest_spacing());
+    for (Model m : kModels) {
+        const EmptySpace fine = EmptySpace::for_scalar(v, c, m, 1, 2);
+        ASSERT_TRUE(fine.joins_empty()) << to_string(m);
+        ASSERT_EQ(fine.dims(), (std::array<std::int64_t, 3>{19, 15, 21}));
+        const EmptySpace made = fine.coarser(), direct = EmptySpace::for_scalar(v, c, m, 2, 2);
+        ASSERT_EQ(made.dims(), direct.dims());
+        EXPECT_EQ(made.edge(), 4);
+        int empty = 0, differ = 0;
+        const auto& d = direct.dims();
+        for (std::int64_t z = 0; z < d[2]; ++z)
+            for (std::int64_t y = 0; y < d[1]; ++y)
+                for (std::int64_t x = 0; x < d[0]; ++x) {
+                    empty += direct.empty({x, y, z}) ? 1 : 0;
+                    differ += made.empty({x, y, z}) != direct.empty({x, y, z}) ? 1 : 0;
+                }
+        EXPECT_EQ(differ, 0) << to_string(m);
+        EXPECT_GT(empty, 100) << to_string(m);
+        EXPECT_LT(empty, d[0] * d[1] * d[2] - 100) << to_string(m);
+        EXPECT_EQ(made.any(), direct.any());
+        EXPECT_EQ(made.joins_empty(), direct.joins_empty());
+        for (const Camera& cam : cameras(v)) {
+            const PixelBounds a = made.pixel_bounds(cam, 40, 30, v.axes(), v.origin(), 2);
+            const PixelBounds b = direct.pixel_bounds(cam, 40, 30, v.axes(), v.origin(), 2);
+            EXPECT_TRUE(a.lo == b.lo && a.hi == b.hi) << to_string(m);
+        }
+    }
 }
 
 // The renderer skips by 2³ macrocells up to RenderSettings::

@@ -157,6 +157,23 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     return es;
 }
 
+EmptySpace EmptySpace::coarser() const {
+    EmptySpace c;
+    c.shift_ = shift_ + 1;
+    c.nodes_ = nodes_;
+    c.node_hi_ = node_hi_;
+    for (int a = 0; a < 3; ++a) c.dims_[a] = (dims_[a] + 1) / 2;  // as macro_dims at shift + 1
+    c.empty_.assign(static_cast<std::size_t>(c.dims_[0] * c.dims_[1] * c.dims_[2]), 1);
+    for (std::int64_t z = 0; z < dims_[2]; ++z)
+        for (std::int64_t y = 0; y < dims_[1]; ++y)
+            for (std::int64_t x = 0; x < dims_[0]; ++x)
+                if (empty_[index({x, y, z})] == 0) c.empty_[c.index({x / 2, y / 2, z / 2})] = 0;
+    c.any_ = std::find(c.empty_.begin(), c.empty_.end(), std::uint8_t{1}) != c.empty_.end();
+    c.joins_empty_ = joins_empty_;
+    c.find_border();
+    return c;
+}
+
 void EmptySpace::find_border() {
     const auto& d = dims_;
     border_.clear();

@@ -150,6 +150,13 @@ public:
     static EmptySpace for_isosurfaces(const Volume& v, const std::vector<double>& isos, int shift,
                                       int threads);
 
+    /// Macrocells of twice the edge, empty where the (up to) 8 of these
+    /// inside them are: where joins_empty(), the classification for_scalar
+    /// gives them (every empty range lies below E, and so does their union;
+    /// a macrocell of twice the edge holds exactly the nodes of its 8), at a
+    /// pass over this grid instead of the volume. Only where joins_empty().
+    [[nodiscard]] EmptySpace coarser() const;
+
     /// True when at least one macrocell is empty (else skipping is pointless).
     [[nodiscard]] bool any() const { return any_; }
     /// True when every empty macrocell's range lies in one interval of

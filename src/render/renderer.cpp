@@ -57,6 +57,7 @@ EmptySpace skipping_macrocells(const Volume& v, const RenderSettings& s, Classif
     if (fine <= s.fine_macrocells_max) {
         EmptySpace es = classify(1);
         if (es.empty_share_in_pairs() >= kFineShareWorth) return es;
+        if (es.joins_empty()) return es.coarser();  // the same as classifying 4³, from the grid
     }
     return classify(kMacrocellShift);
 }
