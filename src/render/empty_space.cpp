@@ -90,16 +90,16 @@ std::vector<std::uint8_t> classify_macrocells(const Volume& v, const std::array<
     return out;
 }
 
-std::array<std::int64_t, 3> macro_dims(const Volume& v, int shift) {
+}  // namespace
+
+std::array<std::int64_t, 3> MacrocellLattice::dims_of(const std::array<std::int64_t, 3>& nodes, int shift) {
     std::array<std::int64_t, 3> md{};
-    for (int a = 0; a < 3; ++a) md[a] = ((v.dims()[a] - 2) >> shift) + 1;  // n − 1 cells, rounded up
+    for (int a = 0; a < 3; ++a) md[a] = ((nodes[a] - 2) >> shift) + 1;  // n − 1 cells, rounded up
     return md;
 }
 
-}  // namespace
-
-MacrocellLattice::MacrocellLattice(const Volume& v, int shift)
-    : shift_(shift), nodes_(v.dims()), dims_(macro_dims(v, shift)) {
+MacrocellLattice::MacrocellLattice(const std::array<std::int64_t, 3>& nodes, int shift)
+    : shift_(shift), nodes_(nodes), dims_(dims_of(nodes, shift)) {
     for (int a = 0; a < 3; ++a) node_hi_[a] = static_cast<double>(nodes_[a] - 1);
 }
 
@@ -157,17 +157,20 @@ EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empt
     return es;
 }
 
-EmptySpace EmptySpace::coarser() const {
-    EmptySpace c;
-    c.shift_ = shift_ + 1;
-    c.nodes_ = nodes_;
-    c.node_hi_ = node_hi_;
-    for (int a = 0; a < 3; ++a) c.dims_[a] = (dims_[a] + 1) / 2;  // as macro_dims at shift + 1
-    c.empty_.assign(static_cast<std::size_t>(c.dims_[0] * c.dims_[1] * c.dims_[2]), 1);
+std::vector<std::uint8_t> EmptySpace::groups_empty(const MacrocellLattice& groups) const {
+    std::vector<std::uint8_t> out(
+        static_cast<std::size_t>(groups.dims()[0] * groups.dims()[1] * groups.dims()[2]), 1);
     for (std::int64_t z = 0; z < dims_[2]; ++z)
         for (std::int64_t y = 0; y < dims_[1]; ++y)
             for (std::int64_t x = 0; x < dims_[0]; ++x)
-                if (empty_[index({x, y, z})] == 0) c.empty_[c.index({x / 2, y / 2, z / 2})] = 0;
+                if (empty_[index({x, y, z})] == 0) out[groups.index({x / 2, y / 2, z / 2})] = 0;
+    return out;
+}
+
+EmptySpace EmptySpace::coarser() const {
+    EmptySpace c;
+    static_cast<MacrocellLattice&>(c) = MacrocellLattice(nodes_, shift_ + 1);
+    c.empty_ = groups_empty(c);
     c.any_ = std::find(c.empty_.begin(), c.empty_.end(), std::uint8_t{1}) != c.empty_.end();
     c.joins_empty_ = joins_empty_;
     c.find_border();
@@ -439,20 +442,15 @@ double EmptySpace::empty_fraction() const {
 }
 
 double EmptySpace::empty_share_in_pairs() const {
+    const MacrocellLattice groups(nodes_, shift_ + 1);
+    const std::vector<std::uint8_t> skipped = groups_empty(groups);  // a coarser macrocell skips these too
     std::int64_t total = 0, empty = 0;
-    for (std::int64_t gz = 0; gz < dims_[2]; gz += 2)
-        for (std::int64_t gy = 0; gy < dims_[1]; gy += 2)
-            for (std::int64_t gx = 0; gx < dims_[0]; gx += 2) {
-                std::int64_t n = 0, e = 0;
-                for (std::int64_t z = gz; z < std::min(gz + 2, dims_[2]); ++z)
-                    for (std::int64_t y = gy; y < std::min(gy + 2, dims_[1]); ++y)
-                        for (std::int64_t x = gx; x < std::min(gx + 2, dims_[0]); ++x) {
-                            ++n;
-                            e += empty_[index({x, y, z})];
-                        }
-                if (e == n) continue;  // an empty group: a coarser macrocell skips it too
-                total += n;
-                empty += e;
+    for (std::int64_t z = 0; z < dims_[2]; ++z)
+        for (std::int64_t y = 0; y < dims_[1]; ++y)
+            for (std::int64_t x = 0; x < dims_[0]; ++x) {
+                if (skipped[groups.index({x / 2, y / 2, z / 2})] != 0) continue;
+                ++total;
+                empty += empty_[index({x, y, z})];
             }
     return total == 0 ? 0.0 : static_cast<double>(empty) / static_cast<double>(total);
 }

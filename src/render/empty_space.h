@@ -99,7 +99,11 @@ struct PixelBounds {
 class MacrocellLattice {
 public:
     MacrocellLattice() = default;
-    MacrocellLattice(const Volume& v, int shift);
+    MacrocellLattice(const Volume& v, int shift) : MacrocellLattice(v.dims(), shift) {}
+    MacrocellLattice(const std::array<std::int64_t, 3>& nodes, int shift);
+    /// Macrocells per axis of a lattice of `nodes` with 2^shift cells per edge.
+    [[nodiscard]] static std::array<std::int64_t, 3> dims_of(const std::array<std::int64_t, 3>& nodes,
+                                                             int shift);
     /// Macrocells per axis.
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
     /// Cells per macrocell edge (2^shift).
@@ -115,11 +119,12 @@ public:
     [[nodiscard]] FATHOM_INLINE std::array<std::int64_t, 3> macrocell(const Vec3& p) const {
         return {axis_cell(p.x, 0) >> shift_, axis_cell(p.y, 1) >> shift_, axis_cell(p.z, 2) >> shift_};
     }
-
-protected:
+    /// Macrocell m's place in x-fastest order.
     [[nodiscard]] FATHOM_INLINE std::size_t index(const std::array<std::int64_t, 3>& m) const {
         return static_cast<std::size_t>(m[0] + dims_[0] * (m[1] + dims_[1] * m[2]));
     }
+
+protected:
     [[nodiscard]] FATHOM_INLINE std::int64_t axis_cell(double p, int a) const {
         const double x = std::clamp(p, 0.0, node_hi_[a]);
         return std::min(static_cast<std::int64_t>(x), nodes_[a] - 2);
@@ -237,6 +242,9 @@ private:
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     void build_ahead(int o, std::vector<std::uint8_t>& out) const;
+    /// Per macrocell of `groups` (twice the edge): 1 where the (up to) 8 of
+    /// these inside it are all empty.
+    [[nodiscard]] std::vector<std::uint8_t> groups_empty(const MacrocellLattice& groups) const;
     void find_border();
 
     std::vector<std::uint8_t> empty_;  // per macrocell: 1 where empty

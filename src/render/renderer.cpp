@@ -52,9 +52,8 @@ constexpr int kMacrocellShift = 2;
 constexpr double kFineShareWorth = 0.25;
 template <class Classify>
 EmptySpace skipping_macrocells(const Volume& v, const RenderSettings& s, Classify&& classify) {
-    std::uint64_t fine = 1;
-    for (const std::int64_t n : v.dims()) fine *= static_cast<std::uint64_t>(n / 2);  // ⌈(n − 1)/2⌉
-    if (fine <= s.fine_macrocells_max) {
+    const auto fine = MacrocellLattice::dims_of(v.dims(), 1);
+    if (static_cast<std::uint64_t>(fine[0] * fine[1] * fine[2]) <= s.fine_macrocells_max) {
         EmptySpace es = classify(1);
         if (es.empty_share_in_pairs() >= kFineShareWorth) return es;
         if (es.joins_empty()) return es.coarser();  // the same as classifying 4³, from the grid
