@@ -1,6 +1,7 @@
 // SIMD classification of point samples, pre-integration's end samples and
 // segments (src/integrate/simd_classify.h, simd_preint.h):
 // every target this CPU runs gives images bit-identical to the scalar path.
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -339,7 +340,8 @@ namespace {
 
 // Transfer functions that take every branch of pre-integration: jumps and
 // a knot at a plateau (tf), Slicer's bone (absolute units), more than 32
-// control values (the binary search), and extinctions from 0 to 400.
+// control values (the binary search), extinctions from 0 to 400, and a
+// jump out of the medium's zero range (step).
 std::vector<std::pair<std::string, Classifier>> ramp_tfs() {
     std::vector<std::pair<std::string, Classifier>> r;
     r.emplace_back("jumps", Classifier(tf(false), 1.0));
@@ -352,6 +354,11 @@ std::vector<std::pair<std::string, Classifier>> ramp_tfs() {
         many.color_points.push_back({5.0 * i + 2.5, {0.1 * (i % 10), 0.5, 1.0 - 0.02 * i}});
     }
     r.emplace_back("many", Classifier(many, 1.0));
+    TransferFunction step;  // a jump out of the zero range: σ's left limit at E is 0
+    step.alpha_kind = TransferFunction::Alpha::extinction;
+    step.alpha_points = {{20, 0.0}, {20, 0.3}, {70, 0.1}};
+    step.color_points = {{10, {0, 0, 0}}, {20, {1, 1, 1}}, {50, {0.2, 0.4, 0.6}}};
+    r.emplace_back("step", Classifier(step, 1.0));
     return r;
 }
 
@@ -359,7 +366,7 @@ std::vector<std::pair<std::string, Classifier>> ramp_tfs() {
 
 TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
     std::mt19937 rng(7);
-    long taken = 0, left = 0, integrals = 0;
+    long taken = 0, left = 0, integrals = 0, zero_pieces = 0;
     for (const auto& [name, c] : ramp_tfs()) {
         const auto& knots = c.breakpoints();
         const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
@@ -395,7 +402,9 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
             if (trial == 5) ends[3] = std::numeric_limits<double>::quiet_NaN();
             const int count = 2 + trial % (simd::kBatch - 1);
             const std::uint32_t skip = trial % 3 == 0 ? 0x5u : 0u;
-            for (Model model : {Model::emission_absorption, Model::absorption, Model::emission})
+            for (Model model : {Model::emission_absorption, Model::absorption, Model::emission}) {
+                // as the renderer sets it: the ramps leave out their pieces below it
+                src.zero_below = zero_below(c, model);
                 for (bool full : {true, false})
                     for (double delta : {0.01, 0.37, 3.0, 60.0})
                         for (auto t : simd::available_targets()) {
@@ -414,6 +423,11 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
                                 ++taken;
                                 if (!full && preint::steep_ramp(c.integrals(), ends[l], ends[l + 1]))
                                     ++integrals;
+                                const double a = std::min(ends[l], ends[l + 1]),
+                                             b = std::max(ends[l], ends[l + 1]);
+                                zero_pieces += std::any_of(knots.begin(), knots.end(), [&](double k) {
+                                    return a < k && k < b && k <= src.zero_below;
+                                });
                                 Segment want{};
                                 switch (model) {
                                     case Model::absorption:
@@ -439,13 +453,15 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
                                     << want.radiance[0];
                             }
                         }
+            }
             simd::force_target(0);
         }
     }
     // nearly every segment is the vector code's; without self-attenuation
-    // most take the integral functions
+    // most take the integral functions; many ramps have pieces below zero_below
     EXPECT_GT(taken, 20 * left);
     EXPECT_GT(integrals, taken / 4);
+    EXPECT_GT(zero_pieces, taken / 10);
 }
 
 TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {

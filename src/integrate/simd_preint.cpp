@@ -206,24 +206,37 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
     // the first cut: the first knot > vf (ascending) or the last < vf
     const VI first =
         hn::IfThenElse(hn::RebindMask(di, ascending), upto_lo, hn::Sub(below_hi, hn::Set(di, 1)));
-    HWY_ALIGN std::int64_t cut_count[hn::MaxLanes(d)];
-    hn::Store(cuts, di, cut_count);
-    const std::int64_t most = *std::max_element(cut_count, cut_count + N);
+    // Pieces wholly below the medium's zero range add nothing: their σ and
+    // g are exactly zero, so E and the depth stay, and so does T = e^{−depth}
+    // (1 before the first piece). The ramp leaves them out: those that end
+    // at a cut at or below zero_below, before the first piece (ascending) or
+    // after the last (descending). Pieces m = lead … lead + rounds remain.
+    const auto at_most_e = static_cast<std::int64_t>(
+        std::upper_bound(breaks.begin(), breaks.end(), src.zero_below) - breaks.begin());
+    const VI zeros = hn::Min(hn::Max(hn::Sub(hn::Set(di, at_most_e), upto_lo), hn::Zero(di)), cuts);
+    const VI lead = hn::IfThenElseZero(hn::RebindMask(di, ascending), zeros), rounds = hn::Sub(cuts, zeros);
+    HWY_ALIGN std::int64_t round_count[hn::MaxLanes(d)];
+    hn::Store(rounds, di, round_count);
+    const std::int64_t most = *std::max_element(round_count, round_count + N);
     const V span = hn::Sub(vb, vf);
+    // l at the cut ending piece m, ramp by ramp (1 past the last cut)
+    auto cut_at = [&](VI m, M cut) {
+        VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, m), hn::Sub(first, m));
+        at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
+        const V knot = hn::GatherIndex(d, breaks.data(), at);
+        return hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
+    };
     V E[3] = {zero, zero, zero};
-    V depth = zero, T = one, l0 = zero;
+    V depth = zero, T = one;
+    const M skips = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Zero(di), lead)));
+    V l0 = hn::AllFalse(d, skips) ? zero
+                                  : hn::IfThenElse(skips, cut_at(hn::Sub(lead, hn::Set(di, 1)), skips), zero);
     M scalar = hn::Not(ok);
     for (std::int64_t m = 0; m <= most; ++m) {
-        const M active = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), cuts)));
-        const M cut = hn::RebindMask(d, hn::Lt(hn::Set(di, m), cuts));
-        V l1 = one;
-        if (m < most) {
-            const VI step = hn::Set(di, m);
-            VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, step), hn::Sub(first, step));
-            at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
-            const V knot = hn::GatherIndex(d, breaks.data(), at);
-            l1 = hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
-        }
+        const M active = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), rounds)));
+        const VI piece = hn::Add(lead, hn::Set(di, m));
+        const M cut = hn::And(active, hn::RebindMask(d, hn::Lt(piece, cuts)));
+        const V l1 = hn::AllFalse(d, cut) ? one : cut_at(piece, cut);
         // for_each_ramp_piece's piece(l0, l1)
         const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
         const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));

@@ -33,8 +33,10 @@ struct SegmentBatch {
 /// (emission–absorption, absorption or emission), with self-attenuation
 /// when `full`. src.sigma, src.color, src.breaks, src.associated and
 /// src.integrals describe the transfer function (without src.integrals every
-/// segment takes the ramp's pieces). Segments with their bit set in `skip` are not
-/// computed (flagged as scalar).
+/// segment takes the ramp's pieces), and src.zero_below the medium's zero
+/// range for `model` (zero_below in render/empty_space.h; −∞ for none): the
+/// ramps leave out their pieces below it. Segments with their bit set in
+/// `skip` are not computed (flagged as scalar).
 void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
                         int count, std::uint32_t skip, SegmentBatch& out);
 
