@@ -22,6 +22,7 @@
 #include "integrate/simd_classify.h"
 #include "integrate/simd_preint.h"
 #include "render/empty_space.h"
+#include "render/simd_bounds.h"
 #include "simd_check.h"
 #include "synthetic.h"
 #include "volume/sampler.h"
@@ -555,4 +556,99 @@ TEST(Simd, SegmentRulesMatchTheScalarRules) {
     }
     EXPECT_GE(compared, 4 * 3 * 2 * 40 * simd::kBatch);
     EXPECT_GT(deep, 100);  // lanes the scalar rule takes over
+}
+
+// The pixel bounds' boxes projected in vectors (simd::project_boxes) against
+// the scalar corners, bit for bit on every target: perspective and
+// orthographic cameras, macrocells of 2 and 4 cells with the last ones
+// clipped, a count that leaves a partial vector, and boxes that reach
+// behind the eye (infinite and NaN pixel coordinates, which std::min and
+// std::max pass over where the first argument is a number).
+TEST(Simd, BoxProjectionMatchesTheScalarCorners) {
+    std::mt19937 rng(29);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    long compared = 0, nonfinite = 0;
+    for (int trial = 0; trial < 12; ++trial) {
+        simd::BoxProjection p;
+        p.perspective = trial % 3 != 2;
+        p.shift = 1 + trial % 2;
+        p.margin = 1.0 / 64;
+        p.dims = {5 + trial % 4, 3 + trial % 3, 4 + trial % 5};
+        for (std::size_t a = 0; a < 3; ++a)  // the last macrocell clipped on some axes
+            p.nodes[a] = (p.dims[a] << p.shift) + 1 - ((trial + static_cast<int>(a)) % 2);
+        for (auto& c : p.col) c = {u(rng) * 0.8, u(rng) * 0.8, u(rng) * 0.8};
+        p.c0 = {u(rng) * 10, u(rng) * 10, 40 + 10 * u(rng)};  // in front of the eye
+        if (trial % 4 == 3) {  // but box 0's first corner at c.x = c.z = 3/128 − 3·(1/64)·(1/2) = 0: px NaN
+            for (auto& c : p.col) c.x = c.z = 0.5;
+            p.c0.x = p.c0.z = 3.0 / 128;
+        }
+        p.scale_x = 300 + 50 * u(rng);
+        p.scale_y = 280 + 50 * u(rng);
+        p.bx = 255.5;
+        p.by = 199.5;
+        const auto cells = static_cast<std::uint32_t>(p.dims[0] * p.dims[1] * p.dims[2]);
+        std::vector<std::uint32_t> index;
+        for (std::uint32_t i = 0; i < cells; i += 1 + static_cast<std::uint32_t>(trial % 2))
+            index.push_back(i);
+        const std::size_t n = index.size() - 3;  // a partial vector at the end
+        // the scalar projection, as EmptySpace::pixel_bounds computed it per box
+        std::vector<std::array<double, 6>> want(n);
+        for (std::size_t b = 0; b < n; ++b) {
+            std::int64_t i = index[b];
+            std::array<double, 3> lo{}, hi{};
+            for (std::size_t a = 0; a < 3; ++a) {
+                const std::int64_t ma = i % p.dims[a];
+                i /= p.dims[a];
+                lo[a] = static_cast<double>(ma << p.shift) - p.margin;
+                hi[a] = static_cast<double>(std::min((ma + 1) << p.shift, p.nodes[a] - 1)) + p.margin;
+            }
+            Vec3 first = p.c0;
+            for (std::size_t a = 0; a < 3; ++a) first += p.col[a] * lo[a];
+            const Vec3 edge[3] = {p.col[0] * (hi[0] - lo[0]), p.col[1] * (hi[1] - lo[1]),
+                                  p.col[2] * (hi[2] - lo[2])};
+            double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+            double z0 = INFINITY, z1 = -INFINITY, far2 = 0.0;
+            for (int k = 0; k < 8; ++k) {
+                Vec3 c = first;
+                for (int a = 0; a < 3; ++a)
+                    if (((k >> a) & 1) != 0) c += edge[a];
+                const double s = p.perspective ? 1.0 / c.z : 1.0;
+                const double px = c.x * s * p.scale_x + p.bx, py = p.by - c.y * s * p.scale_y;
+                x0 = std::min(x0, px);
+                x1 = std::max(x1, px);
+                y0 = std::min(y0, py);
+                y1 = std::max(y1, py);
+                z0 = std::min(z0, c.z);
+                z1 = std::max(z1, c.z);
+                far2 = std::max(far2, dot(c, c));
+            }
+            double t0 = z0, t1 = z1;
+            if (p.perspective) {
+                const Vec3 half = (edge[0] + edge[1] + edge[2]) * 0.5;
+                t0 = std::max(z0, length(first + half) - length(half));
+                t1 = std::sqrt(far2);
+            }
+            want[b] = {x0, x1, y0, y1, t0, t1};
+            nonfinite += std::isfinite(x0 + x1 + y0 + y1) ? 0 : 1;
+        }
+        for (auto t : simd::available_targets()) {
+            simd::force_target(t);
+            std::vector<double> got[6];
+            for (auto& g : got) g.assign(n + 8, 0.0);
+            simd::project_boxes(
+                p, index.data(), n,
+                {got[0].data(), got[1].data(), got[2].data(), got[3].data(), got[4].data(), got[5].data()});
+            for (std::size_t b = 0; b < n; ++b)
+                for (std::size_t k = 0; k < 6; ++k) {
+                    ASSERT_EQ(std::bit_cast<std::uint64_t>(got[k][b]),
+                              std::bit_cast<std::uint64_t>(want[b][k]))
+                        << simd::active_target() << " trial " << trial << " box " << b << " value " << k
+                        << ": " << got[k][b] << " against " << want[b][k];
+                    ++compared;
+                }
+        }
+        simd::force_target(0);
+    }
+    EXPECT_GT(compared, 1000);
+    EXPECT_GT(nonfinite, 0);  // boxes across the eye's plane were among them
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "render/simd_bounds.h"
 
 namespace fathom {
 namespace {
@@ -345,45 +346,16 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
     const double scale_x = perspective ? width / (2.0 * aspect * tan_half) : width / (aspect * camera.height);
     const double scale_y = perspective ? height / (2.0 * tan_half) : height / camera.height;
     const double bx = width / 2.0 - 0.5, by = height / 2.0 - 0.5;
-    // The footprint of border_[b] (x0 > x1 or y0 > y1: off the image).
-    auto project = [&](std::size_t b) {
-        std::int64_t i = border_[b];
-        std::array<double, 3> lo{}, hi{};
-        for (int a = 0; a < 3; ++a) {
-            const std::int64_t ma = i % dims_[a];
-            i /= dims_[a];
-            lo[a] = static_cast<double>(ma << shift_) - m;
-            hi[a] = static_cast<double>(std::min((ma + 1) << shift_, nodes_[a] - 1)) + m;
-        }
-        // corner k = the first + the edges whose bits k has
-        const Vec3 first = corner(lo, hi, 0);
-        const Vec3 edge[3] = {col[0] * (hi[0] - lo[0]), col[1] * (hi[1] - lo[1]), col[2] * (hi[2] - lo[2])};
-        double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
-        double z0 = INFINITY, z1 = -INFINITY, far2 = 0.0;
-        for (int k = 0; k < 8; ++k) {
-            Vec3 c = first;
-            for (int a = 0; a < 3; ++a)
-                if (((k >> a) & 1) != 0) c += edge[a];
-            const double s = perspective ? 1.0 / c.z : 1.0;
-            const double px = c.x * s * scale_x + bx, py = by - c.y * s * scale_y;
-            x0 = std::min(x0, px);
-            x1 = std::max(x1, px);
-            y0 = std::min(y0, py);
-            y1 = std::max(y1, py);
-            z0 = std::min(z0, c.z);
-            z1 = std::max(z1, c.z);
-            far2 = std::max(far2, dot(c, c));
-        }
-        // t along a ray: its camera depth (orthographic), or
-        // the distance from the eye (perspective: at least
-        // the depth, and at least the centre's distance less
-        // the half diagonal; at most the farthest corner's).
-        double t0 = z0, t1 = z1;
-        if (perspective) {
-            const Vec3 half = (edge[0] + edge[1] + edge[2]) * 0.5;
-            t0 = std::max(z0, length(first + half) - length(half));
-            t1 = std::sqrt(far2);
-        }
+    // The boxes' images, computed a block at a time in vectors
+    // (simd::project_boxes: the corners c of the box, widened by m,
+    // projected to pixels, and t along a ray: its camera depth
+    // (orthographic), or the distance from the eye (perspective: at least
+    // the depth, and at least the centre's distance less the half diagonal;
+    // at most the farthest corner's)).
+    const simd::BoxProjection projection{
+        c0, {col[0], col[1], col[2]}, perspective, scale_x, scale_y, bx, by, shift_, m, dims_, nodes_};
+    // The footprint of a box's image (x0 > x1 or y0 > y1: off the image).
+    auto footprint = [&](double x0, double x1, double y0, double y1, double t0, double t1) {
         if (!std::isfinite(x0 + x1 + y0 + y1 + t0 + t1))  // no bound
             return Footprint{0, width - 1, 0, height - 1, -INFINITY, INFINITY};
         Footprint f{};
@@ -416,8 +388,16 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         boxes.resize(std::min(kChunk, border_.size() - c0));
         parallel_chunks(
             static_cast<std::int64_t>(boxes.size()), threads, [&](std::int64_t b0, std::int64_t b1) {
-                for (std::int64_t b = b0; b < b1; ++b)
-                    boxes[static_cast<std::size_t>(b)] = project(c0 + static_cast<std::size_t>(b));
+                constexpr std::size_t kBlock = 256;
+                double images[6][kBlock + 8];  // project_boxes fills whole vectors
+                const simd::BoxImages im{images[0], images[1], images[2], images[3], images[4], images[5]};
+                for (auto b = static_cast<std::size_t>(b0); b < static_cast<std::size_t>(b1); b += kBlock) {
+                    const std::size_t n = std::min(kBlock, static_cast<std::size_t>(b1) - b);
+                    simd::project_boxes(projection, border_.data() + c0 + b, n, im);
+                    for (std::size_t k = 0; k < n; ++k)
+                        boxes[b + k] = footprint(images[0][k], images[1][k], images[2][k], images[3][k],
+                                                 images[4][k], images[5][k]);
+                }
             });
         parallel_chunks(height, threads, [&](std::int64_t r0, std::int64_t r1) {
             for (const Footprint& f : boxes) {
