@@ -223,7 +223,8 @@ TEST(Simd, EndSamplesMatchGridSamplerOverEveryValue) {
         for (std::int64_t k = 0; k < 3; ++k)
             for (std::int64_t j = 0; j < 4; ++j)
                 for (std::int64_t i = 0; i < 5; ++i) v.set_value(i, j, k, std::round(value(rng)));
-        const simd::BatchSource src{v.bytes(), type, 5, 4, 3, nullptr, nullptr};
+        // half the values below zero_below: the batch's bits of them
+        const simd::BatchSource src{v.bytes(), type, 5, 4, 3, nullptr, nullptr, 0.5 * (lo + hi)};
         std::uniform_real_distribution<double> pos(-0.5, 5.5), dir(-1.0, 1.0);
         for (int r = 0; r < 200; ++r) {
             simd::RayGrid g;

@@ -250,13 +250,10 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // which of them lie below the medium's zero range (the skipping walk's).
     auto load_window = [&](std::int64_t j, bool mask) {
         win.start_at(j, s.order == Order::front_to_back, run_end);
-        simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch);
+        below = 0;
+        simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch, mask ? &below : nullptr);
         segs_ready = false;
         shades_ready = false;
-        below = 0;
-        if (mask)
-            for (int l = 0; l < win.count(); ++l)
-                below |= static_cast<std::uint32_t>(batch[l] < simd->zero_below) << l;
     };
     auto end = [&](std::int64_t j) -> End {
         if constexpr (Medium::kHasScalar) {

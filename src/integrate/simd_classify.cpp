@@ -717,8 +717,20 @@ void ShadeBatchAt(const BatchSource& src, const RayGrid& ray, std::int64_t j0, i
     });
 }
 
-void InterpolateBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {
-    visit_dtype(src.type, [&]<class T>(T*) { interpolate_typed<T>(src, ray, j0, count, out); });
+void InterpolateBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
+                      std::uint32_t* below) {
+    const std::size_t used =
+        visit_dtype(src.type, [&]<class T>(T*) { return interpolate_typed<T>(src, ray, j0, count, out); });
+    if (below == nullptr) return;
+    const D d;
+    const V zero_below = hn::Set(d, src.zero_below);
+    std::uint32_t bits = 0;
+    for (std::size_t b = 0; b < used; b += hn::Lanes(d)) {
+        std::uint8_t lanes[8] = {};
+        hn::StoreMaskBits(d, hn::Lt(hn::Load(d, out + b), zero_below), lanes);  // N ≤ 8 lanes of doubles
+        bits |= static_cast<std::uint32_t>(lanes[0]) << b;
+    }
+    *below = bits & ((std::uint32_t{1} << count) - 1u);  // count ≤ kBatch < 32
 }
 
 std::int64_t TargetOf() {
@@ -742,8 +754,9 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
     HWY_DYNAMIC_DISPATCH(ClassifyBatch)(src, ray, j0, count, out);
 }
 
-void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out) {
-    HWY_DYNAMIC_DISPATCH(InterpolateBatch)(src, ray, j0, count, out);
+void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
+                       std::uint32_t* below) {
+    HWY_DYNAMIC_DISPATCH(InterpolateBatch)(src, ray, j0, count, out, below);
 }
 
 void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, std::uint32_t skip,

@@ -185,8 +185,10 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
 
 /// The trilinear scalar alone of samples j0 .. j0 + count − 1 (GridSampler's
 /// bits), for pre-integration's segment ends; `out` holds kBatch values
-/// (whole vectors are computed) and is 64-byte aligned.
-void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out);
+/// (whole vectors are computed) and is 64-byte aligned. With `below`, also
+/// bit l for each sample below src.zero_below (l < count).
+void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
+                       std::uint32_t* below = nullptr);
 
 /// ShadedScalarMedium::factors (on-the-fly gradients, BatchSource::shade)
 /// at points j0 .. j0 + count − 1 of `ray` (count ≤ kBatch), per lane.
