@@ -123,20 +123,22 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
                     "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
     setup_lattice(*this, volume);
     tf = Classifier(transfer, volume.smallest_spacing());
-    if (s.skip_empty)
-        empty_space = skipping_macrocells(volume, s, [&](int shift) {
-            return EmptySpace::for_scalar(volume, tf, s.model, shift, s.threads);
-        });
+    // Macrocells empty by the iso-values, by zeros (which add nothing to the
+    // average), or by the medium (the optical models; none for mip and
+    // minip, which skip by ranges): one classification per model.
     if (s.skip_empty && s.model == Model::isosurface) {
         std::vector<double> isos;
         for (const IsoSurface& iso : s.isosurfaces) isos.push_back(iso.value);
         empty_space = skipping_macrocells(volume, s, [&](int shift) {
             return EmptySpace::for_isosurfaces(volume, isos, shift, s.threads);
         });
-    }
-    if (s.skip_empty && s.model == Model::average) {  // zeros add nothing to the average
+    } else if (s.skip_empty && s.model == Model::average) {
         empty_space = EmptySpace::for_zeros(volume, kMacrocellShift, s.threads);
         if (empty_space.empty_fraction() < kZerosWorth) empty_space = {};
+    } else if (s.skip_empty) {
+        empty_space = skipping_macrocells(volume, s, [&](int shift) {
+            return EmptySpace::for_scalar(volume, tf, s.model, shift, s.threads);
+        });
     }
     // Isosurfaces walk the macrocells where a step reaches a touching one at
     // most along each axis (trace_isosurfaces); the ranges serve larger
