@@ -12,6 +12,7 @@
 #include "fathom/render.h"
 
 #include "render/shading.h"
+#include "simd_check.h"
 #include "synthetic.h"
 
 using namespace fathom;
@@ -161,10 +162,12 @@ TEST(Shading, SkippingStaysExactAndGridsAreRefused) {
         s.shading.enabled = true;
         const Image on = Renderer(v, tf, s).render(cam);
         s.skip_empty = false;
-        s.simd = false;
-        const Image off = Renderer(v, tf, s).render(cam);
-        EXPECT_EQ(std::memcmp(on.rgba.data(), off.rgba.data(), on.rgba.size() * sizeof(float)), 0)
+        const Image all = Renderer(v, tf, s).render(cam);
+        EXPECT_EQ(std::memcmp(on.rgba.data(), all.rgba.data(), on.rgba.size() * sizeof(float)), 0)
             << to_string(k);
+        s.simd = false;  // the scalar path: the SIMD lanes' few ulp where they fuse (simd_check.h)
+        const Image off = Renderer(v, tf, s).render(cam);
+        EXPECT_TRUE(test::images_agree(on, off)) << to_string(k);
         s.shading.enabled = false;
         const Image flat = Renderer(v, tf, s).render(cam);
         EXPECT_NE(std::memcmp(on.rgba.data(), flat.rgba.data(), on.rgba.size() * sizeof(float)), 0);

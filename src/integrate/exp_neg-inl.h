@@ -1,7 +1,11 @@
 // exp_neg.h's e^{−x} and 1 − e^{−x} per SIMD lane, for the Highway
-// translation units (simd_classify.cpp, simd_preint.cpp): every lane performs
-// the scalar functions' operations in their order, so both give the same
-// bits (the files are compiled with -ffp-contract=off).
+// translation units (simd_classify.cpp, simd_preint.cpp), and Fma, the
+// multiply–add those kernels fuse: every lane performs the scalar
+// functions' operations in their order, a product and the sum that takes it
+// fused into one rounding where Fma fuses (targets with FMA, built with
+// FATHOM_SIMD_FMA), so the lanes give the scalar code's bits where it does
+// not, and agree with them to a few ulp where it does (the files are
+// compiled with -ffp-contract=off: nothing else is fused).
 //
 // Highway's per-target header pattern: included once per target by
 // foreach_target, after <hwy/highway.h>.
@@ -30,16 +34,36 @@ using M = hn::Mask<D>;
 using DI = hn::RebindToSigned<D>;
 using VI = hn::Vec<DI>;
 
+#ifndef FATHOM_SIMD_FMA
+#define FATHOM_SIMD_FMA 1
+#endif
+
+/// True where Fma fuses: the lanes' arithmetic then differs from the scalar
+/// code's by a few ulp (simd::fused_lanes()).
+constexpr bool kFused = FATHOM_SIMD_FMA != 0 && HWY_NATIVE_FMA != 0;
+
+/// a·b + c: one rounding where kFused, else the product rounded, then the sum
+/// (the scalar code's a * b + c).
+HWY_INLINE V Fma(V a, V b, V c) {
+    if constexpr (kFused) return hn::MulAdd(a, b, c);
+    return hn::Add(hn::Mul(a, b), c);
+}
+/// c − a·b, likewise.
+HWY_INLINE V NegFma(V a, V b, V c) {
+    if constexpr (kFused) return hn::NegMulAdd(a, b, c);
+    return hn::Sub(c, hn::Mul(a, b));
+}
+
 /// taylor_estrin(r, from) per lane.
 HWY_INLINE V Taylor(D d, V r, std::size_t from) {
     using preint::exp_detail::kTaylor;
     auto pair = [&](std::size_t i) {
-        return hn::Add(hn::Set(d, kTaylor[from + i]), hn::Mul(hn::Set(d, kTaylor[from + i + 1]), r));
+        return Fma(hn::Set(d, kTaylor[from + i + 1]), r, hn::Set(d, kTaylor[from + i]));
     };
     const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2), r8 = hn::Mul(r4, r4);
-    const V b0 = hn::Add(pair(0), hn::Mul(pair(2), r2)), b1 = hn::Add(pair(4), hn::Mul(pair(6), r2));
-    const V b2 = hn::Add(pair(8), hn::Mul(pair(10), r2)), b3 = pair(12);
-    return hn::Add(hn::Add(b0, hn::Mul(b1, r4)), hn::Mul(hn::Add(b2, hn::Mul(b3, r4)), r8));
+    const V b0 = Fma(pair(2), r2, pair(0)), b1 = Fma(pair(6), r2, pair(4));
+    const V b2 = Fma(pair(10), r2, pair(8)), b3 = pair(12);
+    return Fma(Fma(b3, r4, b2), r8, Fma(b1, r4, b0));
 }
 
 /// exp_detail::reduce per lane (−x = k·ln 2 + r), and 2^k; valid where
@@ -50,9 +74,11 @@ struct Reduced {
         using namespace preint::exp_detail;
         const DI di;
         const V y = hn::Neg(x);
-        const V rounded = hn::Add(hn::Mul(y, hn::Set(d, kInvLn2)), hn::Set(d, kRound));
+        // (fused, k may differ from the scalar code's where y/ln 2 lies within
+        // an ulp of a half-integer: r then stays within ln 2 / 2 and a hair)
+        const V rounded = Fma(y, hn::Set(d, kInvLn2), hn::Set(d, kRound));
         k = hn::Sub(rounded, hn::Set(d, kRound));
-        r = hn::Sub(hn::Sub(y, hn::Mul(k, hn::Set(d, kLn2Hi))), hn::Mul(k, hn::Set(d, kLn2Lo)));
+        r = NegFma(k, hn::Set(d, kLn2Lo), NegFma(k, hn::Set(d, kLn2Hi), y));  // k·ln2_hi is exact
         // k from the rounded sum's low bits: 1.5·2^52 + k
         const VI ki = hn::Sub(hn::BitCast(di, rounded), hn::BitCast(di, hn::Set(d, kRound)));
         scale = hn::BitCast(d, hn::ShiftLeft<52>(hn::Add(ki, hn::Set(di, 1023))));
@@ -84,19 +110,16 @@ HWY_INLINE V ExpNegSmall(D d, V x) {
 HWY_INLINE V ExpNegThin(D d, V x) {
     using preint::exp_detail::kTaylor;
     const V r = hn::Neg(x);
-    auto pair = [&](std::size_t i) {
-        return hn::Add(hn::Set(d, kTaylor[i]), hn::Mul(hn::Set(d, kTaylor[i + 1]), r));
-    };
+    auto pair = [&](std::size_t i) { return Fma(hn::Set(d, kTaylor[i + 1]), r, hn::Set(d, kTaylor[i])); };
     const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2);
-    return hn::Add(hn::Add(pair(0), hn::Mul(pair(2), r2)),
-                   hn::Mul(hn::Add(pair(4), hn::Mul(pair(6), r2)), r4));
+    return Fma(Fma(pair(6), r2, pair(4)), r4, Fma(pair(2), r2, pair(0)));
 }
 
 /// one_minus_exp_neg(x) per lane, where InRange(x).
 HWY_INLINE V OneMinusExpNeg(D d, V x) {
     const Reduced e(d, x);
     const V m = hn::Mul(e.r, Taylor(d, e.r, 1));  // e^r − 1
-    return hn::Sub(hn::Sub(hn::Set(d, 1.0), e.scale), hn::Mul(e.scale, m));
+    return NegFma(e.scale, m, hn::Sub(hn::Set(d, 1.0), e.scale));
 }
 
 }  // namespace exp_v

@@ -56,7 +56,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         for (int c = 0; c < nc; ++c) {
             const V y = hn::LoadU(d, f.table[1 + c]);
             const V y0 = hn::TableLookupLanes(y, lo), y1 = hn::TableLookupLanes(y, hi);
-            const V r = hn::Add(y0, hn::Mul(w, hn::Sub(y1, y0)));
+            const V r = exp_v::Fma(w, hn::Sub(y1, y0), y0);
             out[c] = hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, hn::Set(d, f.y[c][n - 1])),
                                     hn::Set(d, f.y[c][0]));
         }
@@ -87,7 +87,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     }
     const V w = hn::Div(hn::Sub(v, below), hn::Sub(above, below));
     for (int c = 0; c < nc; ++c) {
-        const V r = hn::Add(y0[c], hn::Mul(w, hn::Sub(y1[c], y0[c])));
+        const V r = exp_v::Fma(w, hn::Sub(y1[c], y0[c]), y0[c]);
         // p = 0: the first value; p = n: the last
         out[c] = hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, hn::Set(d, f.y[c][n - 1])),
                                 hn::Set(d, f.y[c][0]));
@@ -156,14 +156,17 @@ HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch
 
 /// GridSampler::interpolate of the corners c[0..7] ((0,0,0), (1,0,0),
 /// (0,1,0), (1,1,0), (0,0,1), … in x-fastest order) at fractions (fx, fy, fz).
+/// Each lerp a + f·(b − a), fused or not, stays within [a, b] where the
+/// scalar one does (empty_space.cpp's sample_range).
 HWY_INLINE V Lerp8(const V* c, V fx, V fy, V fz) {
-    const V c00 = hn::Add(c[0], hn::Mul(fx, hn::Sub(c[1], c[0])));
-    const V c10 = hn::Add(c[2], hn::Mul(fx, hn::Sub(c[3], c[2])));
-    const V c01 = hn::Add(c[4], hn::Mul(fx, hn::Sub(c[5], c[4])));
-    const V c11 = hn::Add(c[6], hn::Mul(fx, hn::Sub(c[7], c[6])));
-    const V c0 = hn::Add(c00, hn::Mul(fy, hn::Sub(c10, c00)));
-    const V c1 = hn::Add(c01, hn::Mul(fy, hn::Sub(c11, c01)));
-    return hn::Add(c0, hn::Mul(fz, hn::Sub(c1, c0)));
+    using exp_v::Fma;
+    const V c00 = Fma(fx, hn::Sub(c[1], c[0]), c[0]);
+    const V c10 = Fma(fx, hn::Sub(c[3], c[2]), c[2]);
+    const V c01 = Fma(fx, hn::Sub(c[5], c[4]), c[4]);
+    const V c11 = Fma(fx, hn::Sub(c[7], c[6]), c[6]);
+    const V c0 = Fma(fy, hn::Sub(c10, c00), c00);
+    const V c1 = Fma(fy, hn::Sub(c11, c01), c01);
+    return Fma(fz, hn::Sub(c1, c0), c0);
 }
 
 /// The samples stored, x-fastest or in bricks (their aprons included).
@@ -737,6 +740,10 @@ std::int64_t TargetOf() {
     return HWY_TARGET;
 }
 
+bool FusedOf() {
+    return exp_v::kFused;
+}
+
 // NOLINTNEXTLINE(google-readability-namespace-comments)
 }  // namespace HWY_NAMESPACE
 }  // namespace fathom::simd
@@ -749,6 +756,7 @@ HWY_EXPORT(ClassifyBatch);
 HWY_EXPORT(InterpolateBatch);
 HWY_EXPORT(ShadeBatchAt);
 HWY_EXPORT(TargetOf);
+HWY_EXPORT(FusedOf);
 
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     HWY_DYNAMIC_DISPATCH(ClassifyBatch)(src, ray, j0, count, out);
@@ -861,6 +869,10 @@ std::vector<std::uint32_t> active_cells(const Volume& v, double e, int threads) 
 
 std::string active_target() {
     return hwy::TargetName(HWY_DYNAMIC_DISPATCH(TargetOf)());
+}
+
+bool fused_lanes() {
+    return HWY_DYNAMIC_DISPATCH(FusedOf)();
 }
 
 std::vector<std::int64_t> available_targets() {

@@ -206,6 +206,11 @@ void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, in
 
 /// The name of the target classify_batch dispatches to now (e.g. "AVX2").
 std::string active_target();
+/// Whether the kernels of that target fuse their multiply–adds (built with
+/// FATHOM_SIMD_FMA, on a target with FMA: AVX2 and up): their lanes then
+/// agree with the scalar code to a few ulp per operation instead of bit
+/// for bit (exp_neg-inl.h's Fma).
+bool fused_lanes();
 /// Every target compiled in and supported by this CPU (bit masks of
 /// Highway's target enum), for tests that force each in turn.
 std::vector<std::int64_t> available_targets();

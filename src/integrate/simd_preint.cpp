@@ -2,7 +2,9 @@
 // preintegrate_batch dispatches at run time (src/integrate/simd_preint.h).
 // Every lane performs the scalar code's operations (preintegrated.h's
 // for_each_ramp_piece and RampIntegral, preint_piece.h's integrate_piece,
-// exp_neg.h) in the same order, without fused multiply–add.
+// exp_neg.h) in the same order, the multiply–adds written Fma fused into
+// one rounding where it fuses (exp_neg-inl.h); the ramp's cuts, the piece
+// chosen and the rules' choices stay the scalar code's operations.
 #include "integrate/simd_preint.h"
 
 #include <algorithm>
@@ -87,7 +89,7 @@ struct Piece {
     [[nodiscard]] V weight(V v) const { return hn::Div(hn::Sub(v, k0), hn::Sub(k1, k0)); }
     /// Component c at the position w (on_piece: the ends' values before and after the knots).
     [[nodiscard]] V at(int c, V w) const {
-        const V r = hn::Add(y0[c], hn::Mul(w, hn::Sub(y1[c], y0[c])));
+        const V r = Fma(w, hn::Sub(y1[c], y0[c]), y0[c]);
         return hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, last[c]), first[c]);
     }
 };
@@ -123,15 +125,15 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
         weight = hn::IfThenElse(absorbing, hn::Div(OneMinusExpNeg(d, x), s0), len);
     }
     const V A = hn::Mul(len, s0), B = hn::Mul(hn::Mul(len, hn::Set(d, 0.5)), hn::Sub(s1, s0));
-    auto tau = [&](V u) { return hn::Mul(u, hn::Add(A, hn::Mul(B, u))); };
-    auto source = [&](int k, V u) { return hn::Add(a[k], hn::Mul(u, hn::Add(b[k], hn::Mul(u, c[k])))); };
+    auto tau = [&](V u) { return hn::Mul(u, Fma(B, u, A)); };
+    auto source = [&](int k, V u) { return Fma(u, Fma(u, c[k], b[k]), a[k]); };
     const M shallow = hn::Le(o.depth, hn::Set(d, kThin));
     V thin[3] = {zero, zero, zero};
     if (!hn::AllFalse(d, hn::AndNot(constant, shallow))) {  // some lane takes the thin rule
         for (std::size_t q = 0; q < 3; ++q) {
             const V u = hn::Set(d, kX3[q]);
             const V w = hn::Mul(hn::Mul(len, hn::Set(d, kW3[q])), ExpNegThin(d, tau(u)));  // τ ≤ kThin
-            for (int k = 0; k < 3; ++k) thin[k] = hn::Add(thin[k], hn::Mul(w, source(k, u)));
+            for (int k = 0; k < 3; ++k) thin[k] = Fma(w, source(k, u), thin[k]);
         }
     }
     const M deep = hn::AndNot(constant, hn::Not(shallow));
@@ -149,7 +151,7 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
         const double most = *std::max_element(count, count + hn::Lanes(d));
         auto u_at = [&](V level) {  // τ(u) = level
             const V linear = hn::Div(level, A);
-            V disc = hn::Add(hn::Mul(A, A), hn::Mul(hn::Mul(hn::Set(d, 4.0), B), level));
+            V disc = Fma(hn::Mul(hn::Set(d, 4.0), B), level, hn::Mul(A, A));
             disc = hn::IfThenElse(hn::Lt(zero, disc), disc, zero);
             const V root = hn::Div(hn::Mul(hn::Set(d, 2.0), level), hn::Add(A, hn::Sqrt(disc)));
             const V u = hn::IfThenElse(hn::Eq(B, zero), linear, root);
@@ -166,10 +168,10 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
                              : hn::IfThenElse(last, one, u_at(hn::Div(hn::Mul(total, mv), chunks)));
             const V du = hn::Sub(u1, u0);
             for (std::size_t q = 0; q < 6; ++q) {
-                const V u = hn::Add(u0, hn::Mul(du, hn::Set(d, kX[q])));
+                const V u = Fma(du, hn::Set(d, kX[q]), u0);
                 const V w = hn::Mul(hn::Mul(hn::Mul(len, du), hn::Set(d, kW[q])), ExpNeg(d, tau(u)));
                 for (int k = 0; k < 3; ++k)
-                    thick[k] = hn::IfThenElse(in, hn::Add(thick[k], hn::Mul(w, source(k, u))), thick[k]);
+                    thick[k] = hn::IfThenElse(in, Fma(w, source(k, u), thick[k]), thick[k]);
             }
             u0 = hn::IfThenElse(in, u1, u0);
         }
@@ -254,7 +256,7 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
                 cq[k] = zero;
             } else {  // particle_source
                 a[k] = hn::Mul(s0, c0);
-                bq[k] = hn::Add(hn::Mul(s0, hn::Sub(c1, c0)), hn::Mul(c0, hn::Sub(s1, s0)));
+                bq[k] = Fma(s0, hn::Sub(c1, c0), hn::Mul(c0, hn::Sub(s1, s0)));
                 cq[k] = hn::Mul(hn::Sub(s1, s0), hn::Sub(c1, c0));
             }
         }
@@ -262,7 +264,7 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
         // RampIntegral::add
         const PieceOut r = IntegratePiece(d, hn::Mul(hn::Sub(l1, l0), vdelta), s0, s1, a, bq, cq, full);
         for (int k = 0; k < 3; ++k)
-            E[k] = hn::IfThenElse(active, hn::Add(E[k], hn::Mul(full ? T : one, r.radiance[k])), E[k]);
+            E[k] = hn::IfThenElse(active, Fma(full ? T : one, r.radiance[k], E[k]), E[k]);
         depth = hn::IfThenElse(active, hn::Add(depth, r.depth), depth);
         scalar = hn::Or(scalar, hn::And(active, hn::Or(r.scalar, hn::Not(InRange(d, depth)))));
         // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
@@ -305,15 +307,14 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
             const V x = hn::Sub(v, Column(d, *f, F::kStart, p)),
                     w = hn::Mul(x, Column(d, *f, F::kInvWidth, p));
             if (absorb)
-                hn::Store(hn::Add(Column(d, *f, F::kS, p),
-                                  hn::Mul(x, hn::Add(Column(d, *f, F::kSigma, p),
-                                                     hn::Mul(Column(d, *f, F::kHalfRise, p), w)))),
+                hn::Store(Fma(x, Fma(Column(d, *f, F::kHalfRise, p), w, Column(d, *f, F::kSigma, p)),
+                              Column(d, *f, F::kS, p)),
                           d, S + e);
             if (source)
                 for (std::size_t k = 0; k < 3; ++k) {
-                    const V c = hn::Add(Column(d, *f, F::kB + k, p), hn::Mul(w, Column(d, *f, F::kC + k, p)));
-                    const V a = hn::Add(Column(d, *f, F::kA + k, p), hn::Mul(w, c));
-                    hn::Store(hn::Add(Column(d, *f, F::kG + k, p), hn::Mul(x, a)), d, G[k] + e);
+                    const V c = Fma(w, Column(d, *f, F::kC + k, p), Column(d, *f, F::kB + k, p));
+                    const V a = Fma(w, c, Column(d, *f, F::kA + k, p));
+                    hn::Store(Fma(x, a, Column(d, *f, F::kG + k, p)), d, G[k] + e);
                 }
         }
         // the lanes past the last end: read by the last vector of segments, never used
