@@ -543,15 +543,15 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
     V grad[3];
     for (int i = 0; i < 3; ++i) {
         V r = hn::Zero(d);
-        for (int j = 0; j < 3; ++j) r = hn::Add(r, hn::Mul(hn::Set(d, sh.world_to_index.m[j][i]), du[j]));
+        for (int j = 0; j < 3; ++j) r = exp_v::Fma(hn::Set(d, sh.world_to_index.m[j][i]), du[j], r);
         grad[i] = r;
     }
     auto dot = [&](const V* a, const Vec3& v) {
-        return hn::Add(hn::Add(hn::Mul(a[0], hn::Set(d, v.x)), hn::Mul(a[1], hn::Set(d, v.y))),
-                       hn::Mul(a[2], hn::Set(d, v.z)));
+        return exp_v::Fma(a[2], hn::Set(d, v.z),
+                          exp_v::Fma(a[1], hn::Set(d, v.y), hn::Mul(a[0], hn::Set(d, v.x))));
     };
-    const V len = hn::Sqrt(
-        hn::Add(hn::Add(hn::Mul(grad[0], grad[0]), hn::Mul(grad[1], grad[1])), hn::Mul(grad[2], grad[2])));
+    const V len =
+        hn::Sqrt(exp_v::Fma(grad[2], grad[2], exp_v::Fma(grad[1], grad[1], hn::Mul(grad[0], grad[0]))));
     for (int c = 0; c < 3; ++c) {
         diffuse[c] = hn::Set(d, sh.light ? sh.ka : 1.0);
         specular[c] = hn::Zero(d);
@@ -584,11 +584,11 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
             }
             const V kd = hn::Set(d, sh.kd);
             for (int c = 0; c < 3; ++c) {
-                diffuse[c] = hn::IfThenElse(
-                    normal, hn::Add(diffuse[c], hn::Mul(hn::Mul(kd, ndl), hn::Set(d, color[c]))),
-                    hn::Add(diffuse[c], hn::Set(d, sh.kd * color[c])));
-                specular[c] = hn::IfThenElse(
-                    normal, hn::Add(specular[c], hn::Mul(spec, hn::Set(d, color[c]))), specular[c]);
+                diffuse[c] =
+                    hn::IfThenElse(normal, exp_v::Fma(hn::Mul(kd, ndl), hn::Set(d, color[c]), diffuse[c]),
+                                   hn::Add(diffuse[c], hn::Set(d, sh.kd * color[c])));
+                specular[c] =
+                    hn::IfThenElse(normal, exp_v::Fma(spec, hn::Set(d, color[c]), specular[c]), specular[c]);
             }
         };
         if (sh.lights.empty()) {
@@ -615,7 +615,7 @@ HWY_INLINE void ShadeLanes(D d, const BatchSource& src, const RayGrid& ray, std:
     V diffuse[3], specular[3], opacity;
     ShadeFactorsLanes<T>(d, src, ray, j0, b, diffuse, specular, opacity);
     for (int c = 0; c < 3; ++c)
-        g[c] = hn::Mul(hn::Add(hn::Mul(g[c], diffuse[c]), hn::Mul(sigma, specular[c])), opacity);
+        g[c] = hn::Mul(exp_v::Fma(g[c], diffuse[c], hn::Mul(sigma, specular[c])), opacity);
     sigma = hn::Mul(sigma, opacity);
 }
 
