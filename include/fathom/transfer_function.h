@@ -34,10 +34,16 @@ public:
     /// The linear piece holding v: the number of knots ≤ v (0: before the
     /// first knot, size(): after the last; both constant).
     [[nodiscard]] std::size_t piece(double v) const;
-    /// Piece p's linear function at v (no search; exact at the piece's ends,
-    /// so one-sided limits at a jump come from choosing the piece).
+    /// Piece p's linear function at v (no search; exact at the piece's first
+    /// end, between its two values everywhere, so one-sided limits at a jump
+    /// come from choosing the piece): y_k + w·(y_{k+1} − y_k) with the position
+    /// w = min((v − v_k)·(1/(v_{k+1} − v_k)), 1) (piece_position).
     [[nodiscard]] Value on_piece(std::size_t p, double v) const;
     [[nodiscard]] const std::vector<double>& knots() const { return v_; }
+    /// 1/(v_{k+1} − v_k) per knot k (0 for the last, and +∞ between duplicate
+    /// knots, which no piece selects): on_piece multiplies by it instead of
+    /// dividing, and so do the SIMD lanes and the differentiable renderer.
+    [[nodiscard]] const std::vector<double>& inverse_widths() const { return inv_; }
     [[nodiscard]] const std::vector<Value>& values() const { return y_; }
     [[nodiscard]] bool empty() const { return v_.empty(); }
     /// True when every piece that values in [a, b] select has both of its
@@ -49,8 +55,20 @@ public:
 private:
     std::vector<double> v_;
     std::vector<Value> y_;
+    std::vector<double> inv_;                           // inverse_widths
     std::vector<std::pair<double, double>> zero_runs_;  // [start, end) where every piece is 0
 };
+
+/// The position w ∈ [0, 1] of v on a piece from knot k0 with inverse width
+/// inv: min((v − k0)·inv, 1), as std::min gives it (NaN stays NaN). The
+/// product's rounding can leave it a hair above 1 where v lies just below
+/// the piece's far end; the clamp keeps the value between the piece's two
+/// (σ ≥ 0). S: double, or a number type of the differentiable renderer.
+template <class S>
+inline S piece_position(const S& v, double k0, double inv) {
+    const S w = (v - k0) * inv;
+    return 1.0 < w ? S(1.0) : w;
+}
 
 // Inline: these run once or twice per sample.
 template <int N>
@@ -72,7 +90,7 @@ inline typename PiecewiseLinear<N>::Value PiecewiseLinear<N>::on_piece(std::size
     if (p == 0) return y_.front();
     if (p >= v_.size()) return y_.back();
     const std::size_t k = p - 1;
-    const double w = (v - v_[k]) / (v_[k + 1] - v_[k]);
+    const double w = piece_position(v, v_[k], inv_[k]);
     Value r;
     for (int c = 0; c < N; ++c) r[c] = y_[k][c] + w * (y_[k + 1][c] - y_[k][c]);
     return r;

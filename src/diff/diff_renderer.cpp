@@ -242,10 +242,10 @@ struct ScalarMed {
                 g.tf_alpha[kn.size() - 1] += dsigma * (*alpha_chain)[kn.size() - 1];
             } else {
                 const std::size_t k = p - 1;
-                const double span = kn[k + 1] - kn[k], w = (s.v - kn[k]) / span;
+                const double inv = f.inverse_widths()[k], w = piece_position(s.v, kn[k], inv);
                 g.tf_alpha[k] += (1.0 - w) * dsigma * (*alpha_chain)[k];
                 g.tf_alpha[k + 1] += w * dsigma * (*alpha_chain)[k + 1];
-                dv += dsigma * (f.values()[k + 1][0] - f.values()[k][0]) / span;
+                dv += dsigma * (f.values()[k + 1][0] - f.values()[k][0]) * inv;
             }
         }
         {
@@ -258,11 +258,11 @@ struct ScalarMed {
                 for (int c = 0; c < 3; ++c) g.tf_color[kn.size() - 1][c] += dcolor[c];
             } else {
                 const std::size_t k = p - 1;
-                const double span = kn[k + 1] - kn[k], w = (s.v - kn[k]) / span;
+                const double inv = f.inverse_widths()[k], w = piece_position(s.v, kn[k], inv);
                 for (int c = 0; c < 3; ++c) {
                     g.tf_color[k][c] += (1.0 - w) * dcolor[c];
                     g.tf_color[k + 1][c] += w * dcolor[c];
-                    dv += dcolor[c] * (f.values()[k + 1][c] - f.values()[k][c]) / span;
+                    dv += dcolor[c] * (f.values()[k + 1][c] - f.values()[k][c]) * inv;
                 }
             }
         }
@@ -395,7 +395,7 @@ preint::PieceIntegralT<S> ramp_t(const Classifier& tf, const S& vf, const S& vb,
         if (p == 0) return sigma_at(0);
         if (p >= kn.size()) return sigma_at(kn.size() - 1);
         const std::size_t k = p - 1;
-        const S w = (v - kn[k]) / (kn[k + 1] - kn[k]);
+        const S w = piece_position(v, kn[k], sig.inverse_widths()[k]);
         return sigma_at(k) + w * (sigma_at(k + 1) - sigma_at(k));
     };
     auto on_color = [&](std::size_t p, const S& v) -> std::array<S, 3> {
@@ -407,7 +407,7 @@ preint::PieceIntegralT<S> ramp_t(const Classifier& tf, const S& vf, const S& vb,
             return r;
         }
         const std::size_t k = p - 1;
-        const S w = (v - kn[k]) / (kn[k + 1] - kn[k]);
+        const S w = piece_position(v, kn[k], col.inverse_widths()[k]);
         for (int c = 0; c < 3; ++c) r[c] = color_at(k, c) + w * (color_at(k + 1, c) - color_at(k, c));
         return r;
     };

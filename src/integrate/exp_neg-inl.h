@@ -1,6 +1,7 @@
 // exp_neg.h's e^{−x} and 1 − e^{−x} per SIMD lane, for the Highway
-// translation units (simd_classify.cpp, simd_preint.cpp), and Fma, the
-// multiply–add those kernels fuse: every lane performs the scalar
+// translation units (simd_classify.cpp, simd_preint.cpp), with Fma, the
+// multiply–add those kernels fuse, and a transfer function's position on
+// its piece: every lane performs the scalar
 // functions' operations in their order, a product and the sum that takes it
 // fused into one rounding where Fma fuses (targets with FMA, built with
 // FATHOM_SIMD_FMA), so the lanes give the scalar code's bits where it does
@@ -52,6 +53,14 @@ HWY_INLINE V Fma(V a, V b, V c) {
 HWY_INLINE V NegFma(V a, V b, V c) {
     if constexpr (kFused) return hn::NegMulAdd(a, b, c);
     return hn::Sub(c, hn::Mul(a, b));
+}
+
+/// piece_position (fathom/transfer_function.h) per lane: a transfer
+/// function's position min((v − k0)·inv, 1) on its piece, as std::min
+/// chooses (NaN stays NaN).
+HWY_INLINE V PiecePosition(D d, V v, V k0, V inv) {
+    const V w = hn::Mul(hn::Sub(v, k0), inv), one = hn::Set(d, 1.0);
+    return hn::IfThenElse(hn::Lt(one, w), one, w);
 }
 
 /// taylor_estrin(r, from) per lane.

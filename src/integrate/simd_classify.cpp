@@ -48,9 +48,9 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
             i = hn::Sub(i, hn::VecFromMask(di, hn::RebindMask(di, hn::Le(hn::Set(d, kn[k]), v))));
         const auto lo = hn::IndicesFromVec(d, hn::Max(hn::Sub(i, hn::Set(di, 1)), hn::Zero(di)));
         const auto hi = hn::IndicesFromVec(d, hn::Min(i, hn::Set(di, static_cast<std::int64_t>(n - 1))));
-        const V knots = hn::LoadU(d, f.table[0]);
-        const V below = hn::TableLookupLanes(knots, lo), above = hn::TableLookupLanes(knots, hi);
-        const V w = hn::Div(hn::Sub(v, below), hn::Sub(above, below));
+        const V below = hn::TableLookupLanes(hn::LoadU(d, f.table[0]), lo);
+        const V w = exp_v::PiecePosition(
+            d, v, below, hn::TableLookupLanes(hn::LoadU(d, f.table[FlatFunction::kInvRow]), lo));
         const auto any_below = hn::RebindMask(d, hn::Gt(i, hn::Zero(di)));
         const auto any_above = hn::RebindMask(d, hn::Lt(i, hn::Set(di, static_cast<std::int64_t>(n))));
         for (int c = 0; c < nc; ++c) {
@@ -62,7 +62,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         }
         return;
     }
-    V below = hn::Set(d, kn[0]), above = hn::Set(d, kn[n - 1]);
+    V below = hn::Set(d, kn[0]), inv = hn::Set(d, f.inv[0]);
     V y0[3], y1[3];
     for (int c = 0; c < nc; ++c) {
         y0[c] = hn::Set(d, f.y[c][0]);
@@ -72,12 +72,12 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
     for (std::size_t i = 1; i < n; ++i) {  // the last knot ≤ v
         const auto m = hn::Le(hn::Set(d, kn[i]), v);
         below = hn::IfThenElse(m, hn::Set(d, kn[i]), below);
+        inv = hn::IfThenElse(m, hn::Set(d, f.inv[i]), inv);
         for (int c = 0; c < nc; ++c) y0[c] = hn::IfThenElse(m, hn::Set(d, f.y[c][i]), y0[c]);
     }
     auto any_above = hn::Lt(v, hn::Set(d, kn[n - 1]));
     for (std::size_t i = n - 1; i-- > 0;) {  // the first knot > v
         const auto m = hn::Lt(v, hn::Set(d, kn[i]));
-        above = hn::IfThenElse(m, hn::Set(d, kn[i]), above);
         for (int c = 0; c < nc; ++c) y1[c] = hn::IfThenElse(m, hn::Set(d, f.y[c][i]), y1[c]);
     }
     if (n > 8) {  // PiecewiseLinear::piece bisects beyond 8 knots: NaN lands after the last
@@ -85,7 +85,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         any_below = hn::Or(any_below, nan);
         any_above = hn::AndNot(nan, any_above);
     }
-    const V w = hn::Div(hn::Sub(v, below), hn::Sub(above, below));
+    const V w = exp_v::PiecePosition(d, v, below, inv);
     for (int c = 0; c < nc; ++c) {
         const V r = exp_v::Fma(w, hn::Sub(y1[c], y0[c]), y0[c]);
         // p = 0: the first value; p = n: the last
@@ -773,9 +773,11 @@ void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, in
 }
 
 namespace {
-FlatFunction flatten_any(const std::vector<double>& knots, int components, auto&& value) {
+FlatFunction flatten_any(const std::vector<double>& knots, const std::vector<double>& inv, int components,
+                         auto&& value) {
     FlatFunction f;
     f.knots = knots;
+    f.inv = inv;
     f.components = components;
     for (int c = 0; c < components; ++c)
         for (std::size_t i = 0; i < knots.size(); ++i) f.y[c].push_back(value(i, c));
@@ -784,17 +786,19 @@ FlatFunction flatten_any(const std::vector<double>& knots, int components, auto&
             const std::size_t k = std::min(i, knots.size() - 1);
             f.table[0][i] = knots[k];
             for (int c = 0; c < components; ++c) f.table[1 + c][i] = f.y[c][k];
+            f.table[FlatFunction::kInvRow][i] = inv[k];
         }
     return f;
 }
 }  // namespace
 
 FlatFunction flatten(const PiecewiseLinear<1>& f) {
-    return flatten_any(f.knots(), 1, [&](std::size_t i, int) { return f.values()[i][0]; });
+    return flatten_any(f.knots(), f.inverse_widths(), 1,
+                       [&](std::size_t i, int) { return f.values()[i][0]; });
 }
 
 FlatFunction flatten(const PiecewiseLinear<3>& f) {
-    return flatten_any(f.knots(), 3,
+    return flatten_any(f.knots(), f.inverse_widths(), 3,
                        [&](std::size_t i, int c) { return f.values()[i][static_cast<std::size_t>(c)]; });
 }
 

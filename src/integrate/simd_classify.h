@@ -48,11 +48,14 @@ inline constexpr std::int64_t kPairBytesMax = std::int64_t{1} << 30;
 struct FlatFunction {
     std::vector<double> knots;
     std::vector<double> y[3];  // per component; only y[0] for σ
+    std::vector<double> inv;   // PiecewiseLinear::inverse_widths
     int components = 1;
-    /// With at most kTable knots: the knots (row 0) and each component's
-    /// values (rows 1 …), padded with the last, for lane permutations.
+    /// With at most kTable knots: the knots (row 0), each component's values
+    /// (rows 1 …) and the inverse widths (row kInvRow), padded with the last,
+    /// for lane permutations.
     static constexpr std::size_t kTable = 8;
-    alignas(64) double table[4][kTable] = {};
+    static constexpr std::size_t kInvRow = 4;
+    alignas(64) double table[5][kTable] = {};
 };
 
 /// A point-sampled quadrature's segment rule (integrate/point_rules.h) that

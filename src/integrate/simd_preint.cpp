@@ -51,7 +51,7 @@ HWY_INLINE VI Count(D d, const std::vector<double>& keys, V v) {
 /// One piece of a piecewise-linear function per lane, chosen by a value:
 /// PiecewiseLinear::piece, then on_piece at any v.
 struct Piece {
-    V k0, k1, y0[3], y1[3], first[3], last[3];
+    V k0, inv, y0[3], y1[3], first[3], last[3];
     M any_below, any_above;
 
     Piece(D d, const FlatFunction& f, V v) {
@@ -64,7 +64,7 @@ struct Piece {
             const auto ilo = hn::IndicesFromVec(d, lo), ihi = hn::IndicesFromVec(d, hi);
             const V knots = hn::LoadU(d, f.table[0]);
             k0 = hn::TableLookupLanes(knots, ilo);
-            k1 = hn::TableLookupLanes(knots, ihi);
+            inv = hn::TableLookupLanes(hn::LoadU(d, f.table[FlatFunction::kInvRow]), ilo);
             for (int c = 0; c < f.components; ++c) {
                 const V y = hn::LoadU(d, f.table[1 + c]);
                 y0[c] = hn::TableLookupLanes(y, ilo);
@@ -72,7 +72,7 @@ struct Piece {
             }
         } else {
             k0 = hn::GatherIndex(d, f.knots.data(), lo);
-            k1 = hn::GatherIndex(d, f.knots.data(), hi);
+            inv = hn::GatherIndex(d, f.inv.data(), lo);
             for (int c = 0; c < f.components; ++c) {
                 y0[c] = hn::GatherIndex(d, f.y[c].data(), lo);
                 y1[c] = hn::GatherIndex(d, f.y[c].data(), hi);
@@ -86,7 +86,7 @@ struct Piece {
         any_above = hn::RebindMask(d, hn::Lt(p, hn::Set(di, n)));
     }
     /// The position of v on the piece (on_piece's w, once for all components).
-    [[nodiscard]] V weight(V v) const { return hn::Div(hn::Sub(v, k0), hn::Sub(k1, k0)); }
+    [[nodiscard]] V weight(D d, V v) const { return PiecePosition(d, v, k0, inv); }
     /// Component c at the position w (on_piece: the ends' values before and after the knots).
     [[nodiscard]] V at(int c, V w) const {
         const V r = Fma(w, hn::Sub(y1[c], y0[c]), y0[c]);
@@ -243,8 +243,8 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
         const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
         const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
         const Piece ps(d, *src.sigma, vm), pc(d, *src.color, vm);
-        V s0 = ps.at(0, ps.weight(v0)), s1 = ps.at(0, ps.weight(v1));
-        const V w0 = pc.weight(v0), w1 = pc.weight(v1);
+        V s0 = ps.at(0, ps.weight(d, v0)), s1 = ps.at(0, ps.weight(d, v1));
+        const V w0 = pc.weight(d, v0), w1 = pc.weight(d, v1);
         V a[3], bq[3], cq[3];
         for (int k = 0; k < 3; ++k) {
             const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);

@@ -23,6 +23,8 @@ PiecewiseLinear<N>::PiecewiseLinear(std::vector<std::pair<double, Value>> points
         v_.push_back(v);
         y_.push_back(y);
     }
+    inv_.assign(v_.size(), 0.0);
+    for (std::size_t k = 0; k + 1 < v_.size(); ++k) inv_[k] = 1.0 / (v_[k + 1] - v_[k]);
     // Runs of consecutive pieces whose defining values are all exactly 0.
     // Piece p holds v in [v_{p−1}, v_p) (−∞ before the first knot, +∞ after
     // the last); pieces between duplicate knots are never selected but
