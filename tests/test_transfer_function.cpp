@@ -1,4 +1,8 @@
+#include <algorithm>
 #include <cmath>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -40,6 +44,41 @@ TEST(TransferFunction, SigmaIsPiecewiseLinearWithJumpsAndClamping) {
     // particle model: g = σ·c
     EXPECT_DOUBLE_EQ(c.source(5)[2], 1.5);
     EXPECT_EQ(c.breakpoints(), (std::vector<double>{0, 5, 10}));
+}
+
+// on_piece multiplies by the piece's inverse width: the position stays
+// within [0, 1] (piece_position's argument), so every value lies between
+// the piece's two, also on the last doubles below its far end (a piece
+// falling to σ = 0 stays ≥ 0), and the first end gives its value exactly.
+TEST(TransferFunction, PieceValuesStayBetweenTheirEnds) {
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int at_one = 0;
+    for (int trial = 0; trial < 2000; ++trial) {
+        std::vector<std::pair<double, std::array<double, 1>>> pts;
+        double x = -10.0 * u(rng);
+        for (int k = 0; k < 5; ++k) {
+            pts.push_back({x, {k % 2 == 0 ? 3.0 * u(rng) : 0.0}});
+            x += std::exp(-6.0 * u(rng)) * (1.0 + u(rng)) / 3.0;  // awkward widths
+        }
+        const PiecewiseLinear<1> f(pts);
+        for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
+            const double k0 = pts[k].first, k1 = pts[k + 1].first;
+            const double lo = std::min(pts[k].second[0], pts[k + 1].second[0]),
+                         hi = std::max(pts[k].second[0], pts[k + 1].second[0]);
+            EXPECT_EQ(f(k0)[0], pts[k].second[0]);
+            double v = k1;
+            for (int s = 0; s < 8; ++s) {  // the last doubles below k1, and one inside
+                v = s == 7 ? k0 + u(rng) * (k1 - k0) : std::nextafter(v, -INFINITY);
+                const double w = (v - k0) * f.inverse_widths()[k];
+                ASSERT_LE(w, 1.0) << v << " on [" << k0 << ", " << k1 << ")";
+                at_one += w == 1.0 ? 1 : 0;
+                const double y = f(v)[0];
+                ASSERT_TRUE(lo <= y && y <= hi) << v << " on [" << k0 << ", " << k1 << "): " << y;
+            }
+        }
+    }
+    EXPECT_GT(at_one, 100);  // the product reaches 1 below k1: the bound is tight
 }
 
 TEST(TransferFunction, OpacityConvertsPerPointWithUnitDistance) {

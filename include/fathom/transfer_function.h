@@ -37,7 +37,7 @@ public:
     /// Piece p's linear function at v (no search; exact at the piece's first
     /// end, between its two values everywhere, so one-sided limits at a jump
     /// come from choosing the piece): y_k + w·(y_{k+1} − y_k) with the position
-    /// w = min((v − v_k)·(1/(v_{k+1} − v_k)), 1) (piece_position).
+    /// w = (v − v_k)·(1/(v_{k+1} − v_k)) (piece_position).
     [[nodiscard]] Value on_piece(std::size_t p, double v) const;
     [[nodiscard]] const std::vector<double>& knots() const { return v_; }
     /// 1/(v_{k+1} − v_k) per knot k (0 for the last, and +∞ between duplicate
@@ -59,15 +59,15 @@ private:
     std::vector<std::pair<double, double>> zero_runs_;  // [start, end) where every piece is 0
 };
 
-/// The position w ∈ [0, 1] of v on a piece from knot k0 with inverse width
-/// inv: min((v − k0)·inv, 1), as std::min gives it (NaN stays NaN). The
-/// product's rounding can leave it a hair above 1 where v lies just below
-/// the piece's far end; the clamp keeps the value between the piece's two
-/// (σ ≥ 0). S: double, or a number type of the differentiable renderer.
+/// The position w ∈ [0, 1] of v on a piece [k0, k1) from knot k0 with
+/// inv = 1/(k1 − k0) rounded: (v − k0)·inv. It stays ≤ 1, so the value stays
+/// between the piece's two (σ ≥ 0): v < k1 rounds v − k0 to no more than
+/// d = k1 − k0 rounded, and d·inv = 1 + e with |e| ≤ 2⁻⁵³ rounds to 1 at
+/// most (a tie goes to the even 1). S: double, or a number type of the
+/// differentiable renderer.
 template <class S>
 inline S piece_position(const S& v, double k0, double inv) {
-    const S w = (v - k0) * inv;
-    return 1.0 < w ? S(1.0) : w;
+    return (v - k0) * inv;
 }
 
 // Inline: these run once or twice per sample.

@@ -56,11 +56,9 @@ HWY_INLINE V NegFma(V a, V b, V c) {
 }
 
 /// piece_position (fathom/transfer_function.h) per lane: a transfer
-/// function's position min((v − k0)·inv, 1) on its piece, as std::min
-/// chooses (NaN stays NaN).
-HWY_INLINE V PiecePosition(D d, V v, V k0, V inv) {
-    const V w = hn::Mul(hn::Sub(v, k0), inv), one = hn::Set(d, 1.0);
-    return hn::IfThenElse(hn::Lt(one, w), one, w);
+/// function's position (v − k0)·inv on its piece, in [0, 1].
+HWY_INLINE V PiecePosition(V v, V k0, V inv) {
+    return hn::Mul(hn::Sub(v, k0), inv);
 }
 
 /// taylor_estrin(r, from) per lane.

@@ -50,7 +50,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         const auto hi = hn::IndicesFromVec(d, hn::Min(i, hn::Set(di, static_cast<std::int64_t>(n - 1))));
         const V below = hn::TableLookupLanes(hn::LoadU(d, f.table[0]), lo);
         const V w = exp_v::PiecePosition(
-            d, v, below, hn::TableLookupLanes(hn::LoadU(d, f.table[FlatFunction::kInvRow]), lo));
+            v, below, hn::TableLookupLanes(hn::LoadU(d, f.table[FlatFunction::kInvRow]), lo));
         const auto any_below = hn::RebindMask(d, hn::Gt(i, hn::Zero(di)));
         const auto any_above = hn::RebindMask(d, hn::Lt(i, hn::Set(di, static_cast<std::int64_t>(n))));
         for (int c = 0; c < nc; ++c) {
@@ -85,7 +85,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         any_below = hn::Or(any_below, nan);
         any_above = hn::AndNot(nan, any_above);
     }
-    const V w = exp_v::PiecePosition(d, v, below, inv);
+    const V w = exp_v::PiecePosition(v, below, inv);
     for (int c = 0; c < nc; ++c) {
         const V r = exp_v::Fma(w, hn::Sub(y1[c], y0[c]), y0[c]);
         // p = 0: the first value; p = n: the last

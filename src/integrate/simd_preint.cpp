@@ -86,7 +86,7 @@ struct Piece {
         any_above = hn::RebindMask(d, hn::Lt(p, hn::Set(di, n)));
     }
     /// The position of v on the piece (on_piece's w, once for all components).
-    [[nodiscard]] V weight(D d, V v) const { return PiecePosition(d, v, k0, inv); }
+    [[nodiscard]] V weight(V v) const { return PiecePosition(v, k0, inv); }
     /// Component c at the position w (on_piece: the ends' values before and after the knots).
     [[nodiscard]] V at(int c, V w) const {
         const V r = Fma(w, hn::Sub(y1[c], y0[c]), y0[c]);
@@ -243,8 +243,8 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
         const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
         const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
         const Piece ps(d, *src.sigma, vm), pc(d, *src.color, vm);
-        V s0 = ps.at(0, ps.weight(d, v0)), s1 = ps.at(0, ps.weight(d, v1));
-        const V w0 = pc.weight(d, v0), w1 = pc.weight(d, v1);
+        V s0 = ps.at(0, ps.weight(v0)), s1 = ps.at(0, ps.weight(v1));
+        const V w0 = pc.weight(v0), w1 = pc.weight(v1);
         V a[3], bq[3], cq[3];
         for (int k = 0; k < 3; ++k) {
             const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
