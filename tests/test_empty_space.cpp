@@ -572,6 +572,12 @@ void check_pixel_bounds(const Volume& v, bool slab) {
     for (const Camera& cam : cameras(v)) {
         const PixelBounds pb = es.pixel_bounds(cam, w, h, v.axes(), v.origin(), 2);
         ASSERT_TRUE(pb.any());
+        // each thread draws its share of the boxes, then they merge: the
+        // same bounds whatever the thread count
+        for (int threads : {1, 3}) {
+            const PixelBounds other = es.pixel_bounds(cam, w, h, v.axes(), v.origin(), threads);
+            EXPECT_TRUE(other.lo == pb.lo && other.hi == pb.hi) << threads << " threads";
+        }
         int none = 0, inside = 0, near_points = 0, wrong = 0;
         for (int y = 0; y < h; ++y)
             for (int x = 0; x < w; ++x) {
@@ -610,8 +616,9 @@ void check_pixel_bounds(const Volume& v, bool slab) {
 }
 }  // namespace
 
-// A frame's PixelBounds: every point of a pixel's ray within kMargin of a
-// non-empty macrocell has its t in the pixel's [lo, hi]; rays that miss the
+// A frame's PixelBounds: the same for 1, 2 and 3 threads; every point of a
+// pixel's ray within kMargin of a non-empty macrocell has its t in the
+// pixel's [lo, hi]; rays that miss the
 // blobs get none (lo > hi), and the rays that meet them start their bounds
 // inside the volume, not at its box. Blobs, and blobs with a slab through
 // the whole box (non-empty macrocells that rays enter only from the grid's

@@ -374,46 +374,57 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
     };
     out.width = width;
     const auto pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-    out.lo.assign(pixels, INFINITY);
-    out.hi.assign(pixels, -INFINITY);
-    // Chunks of boxes: each projected over threads, then drawn in bands of
-    // rows over threads (each band takes every box of the chunk that
-    // reaches it); memory stays at one chunk (3 MB). Each pass starts its
-    // threads anew, so a chunk holds enough boxes to pay for that: the
-    // bunny's 77.5 k in one (with 16 k a chunk its 2 threads measured no
-    // faster than one).
-    constexpr std::size_t kChunk = std::size_t{1} << 17;
-    std::vector<Footprint> boxes;
-    for (std::size_t c0 = 0; c0 < border_.size(); c0 += kChunk) {
-        boxes.resize(std::min(kChunk, border_.size() - c0));
-        parallel_chunks(
-            static_cast<std::int64_t>(boxes.size()), threads, [&](std::int64_t b0, std::int64_t b1) {
-                constexpr std::size_t kBlock = 256;
-                double images[6][kBlock + 8];  // project_boxes fills whole vectors
-                const simd::BoxImages im{images[0], images[1], images[2], images[3], images[4], images[5]};
-                for (auto b = static_cast<std::size_t>(b0); b < static_cast<std::size_t>(b1); b += kBlock) {
-                    const std::size_t n = std::min(kBlock, static_cast<std::size_t>(b1) - b);
-                    simd::project_boxes(projection, border_.data() + c0 + b, n, im);
-                    for (std::size_t k = 0; k < n; ++k)
-                        boxes[b + k] = footprint(images[0][k], images[1][k], images[2][k], images[3][k],
-                                                 images[4][k], images[5][k]);
-                }
-            });
-        parallel_chunks(height, threads, [&](std::int64_t r0, std::int64_t r1) {
-            for (const Footprint& f : boxes) {
-                const int ya = std::max<int>(f.y0, static_cast<int>(r0)),
-                          yb = std::min<int>(f.y1, static_cast<int>(r1) - 1);
-                for (int y = ya; y <= yb; ++y) {
-                    float* lo = out.lo.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
-                    float* hi = out.hi.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
-                    for (int x = f.x0; x <= f.x1; ++x) {
-                        lo[x] = std::min(lo[x], f.lo);
-                        hi[x] = std::max(hi[x], f.hi);
-                    }
+    // One parallel region: each thread projects a contiguous share of the
+    // boxes a block at a time and draws each block's footprints at once
+    // into bounds of its own (thread 0 into out's), then the threads merge
+    // them row band by row band. Drawing every box into one pair of arrays
+    // in bands of rows made each thread scan every box and write rows last
+    // held in the other core's cache: on the bunny's 77.5 k boxes the
+    // drawing took 3.5 ms on one thread and 5.3 ms on two.
+    const int nt = static_cast<int>(std::max<std::int64_t>(
+        1, std::min<std::int64_t>(resolve_threads(threads), static_cast<std::int64_t>(border_.size()))));
+    std::vector<std::vector<float>> own_lo(static_cast<std::size_t>(nt - 1)), own_hi(own_lo.size());
+    auto draw = [&](const Footprint& f, float* lo_rows, float* hi_rows) {
+        for (int y = f.y0; y <= f.y1; ++y) {
+            float* lo = lo_rows + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+            float* hi = hi_rows + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+            for (int x = f.x0; x <= f.x1; ++x) {
+                lo[x] = std::min(lo[x], f.lo);
+                hi[x] = std::max(hi[x], f.hi);
+            }
+        }
+    };
+    parallel_blocks(static_cast<std::size_t>(nt), nt, [&](std::size_t, std::size_t, int t) {
+        std::vector<float>& lo = t == 0 ? out.lo : own_lo[static_cast<std::size_t>(t - 1)];
+        std::vector<float>& hi = t == 0 ? out.hi : own_hi[static_cast<std::size_t>(t - 1)];
+        lo.assign(pixels, INFINITY);
+        hi.assign(pixels, -INFINITY);
+        const std::size_t b0 = border_.size() * static_cast<std::size_t>(t) / static_cast<std::size_t>(nt),
+                          b1 =
+                              border_.size() * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(nt);
+        constexpr std::size_t kBlock = 256;
+        double images[6][kBlock + 8];  // project_boxes fills whole vectors
+        const simd::BoxImages im{images[0], images[1], images[2], images[3], images[4], images[5]};
+        for (std::size_t b = b0; b < b1; b += kBlock) {
+            const std::size_t n = std::min(kBlock, b1 - b);
+            simd::project_boxes(projection, border_.data() + b, n, im);
+            for (std::size_t k = 0; k < n; ++k)
+                draw(footprint(images[0][k], images[1][k], images[2][k], images[3][k], images[4][k],
+                               images[5][k]),
+                     lo.data(), hi.data());
+        }
+    });
+    if (nt > 1)  // min and max in any order: the same bounds as one thread's
+        parallel_chunks(static_cast<std::int64_t>(pixels), nt, [&](std::int64_t p0, std::int64_t p1) {
+            for (std::size_t t = 0; t < own_lo.size(); ++t) {
+                const float* lo = own_lo[t].data();
+                const float* hi = own_hi[t].data();
+                for (auto i = static_cast<std::size_t>(p0); i < static_cast<std::size_t>(p1); ++i) {
+                    out.lo[i] = std::min(out.lo[i], lo[i]);
+                    out.hi[i] = std::max(out.hi[i], hi[i]);
                 }
             }
         });
-    }
     return out;
 }
 
