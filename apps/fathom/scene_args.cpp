@@ -131,7 +131,7 @@ void SceneArgs::add_to(CLI::App* cmd) {
                     "Clipping plane PX,PY,PZ,NX,NY,NZ (point, normal; keeps the side the normal points to); "
                     "repeat for up to 6; replaces the scene's");
     cmd->add_flag("--no-simd", this->overrides.no_simd,
-                  "Turn off SIMD sample classification (same image; to measure it)");
+                  "Turn off SIMD sample classification (to measure it; the same image to a few ulp of double)");
     cmd->add_flag("--no-bricks", this->overrides.no_bricks,
                   "Keep a large volume's samples x-fastest instead of in bricks (same image; to measure it)");
 }
