@@ -574,8 +574,8 @@ void check_pixel_bounds(const Volume& v, bool slab) {
         ASSERT_TRUE(pb.any());
         // each thread draws its share of the boxes, then they merge: the
         // same bounds whatever the thread count
-        for (int threads : {1, 3}) {
-            const PixelBounds other = es.pixel_bounds(cam, w, h, v.axes(), v.origin(), threads);
+        for (int threads : {1, 2, 3}) {  // a thread per box or two: these few boxes divide too
+            const PixelBounds other = es.pixel_bounds(cam, w, h, v.axes(), v.origin(), threads, 2);
             EXPECT_TRUE(other.lo == pb.lo && other.hi == pb.hi) << threads << " threads";
         }
         int none = 0, inside = 0, near_points = 0, wrong = 0;

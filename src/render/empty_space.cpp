@@ -296,7 +296,7 @@ float round_float(double x, bool down) {
 }  // namespace
 
 PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
-                                     const Vec3& origin, int threads) const {
+                                     const Vec3& origin, int threads, std::size_t boxes_per_thread) const {
     PixelBounds out;
     if (!any_ || width <= 0 || height <= 0) return out;
     const Vec3 basis[3] = {camera.right, camera.up, camera.forward};
@@ -381,8 +381,15 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
     // in bands of rows made each thread scan every box and write rows last
     // held in the other core's cache: on the bunny's 77.5 k boxes the
     // drawing took 3.5 ms on one thread and 5.3 ms on two.
+    // Threads: one per boxes_per_thread boxes (16 k: fewer do not pay for
+    // their bounds' filling and merging), and as many copies of the bounds
+    // as 32 MiB hold (7 at 1024²), two at least.
+    const auto copy_bytes = static_cast<std::int64_t>(pixels * 2 * sizeof(float));
     const int nt = static_cast<int>(std::max<std::int64_t>(
-        1, std::min<std::int64_t>(resolve_threads(threads), static_cast<std::int64_t>(border_.size()))));
+        1,
+        std::min({static_cast<std::int64_t>(resolve_threads(threads)),
+                  1 + static_cast<std::int64_t>(border_.size() / std::max<std::size_t>(1, boxes_per_thread)),
+                  std::max<std::int64_t>(2, 1 + (std::int64_t{32} << 20) / copy_bytes)})));
     std::vector<std::vector<float>> own_lo(static_cast<std::size_t>(nt - 1)), own_hi(own_lo.size());
     auto draw = [&](const Footprint& f, float* lo_rows, float* hi_rows) {
         for (int y = f.y0; y <= f.y1; ++y) {

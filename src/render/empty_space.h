@@ -189,8 +189,12 @@ public:
     /// such a box). No bounds (PixelBounds::any() false) unless the whole
     /// lattice lies in front of the camera and the camera's axes are
     /// orthonormal.
+    /// `threads`: at most, one per `boxes_per_thread` boxes (each thread
+    /// draws its share into bounds of its own, then they merge: the same
+    /// bounds for any count).
     [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
-                                           const Vec3& origin, int threads) const;
+                                           const Vec3& origin, int threads,
+                                           std::size_t boxes_per_thread = 16384) const;
 
     /// The cap of distance_ahead.
     static constexpr int kMaxDistance = 255;
