@@ -47,12 +47,8 @@ inline double lerp_tolerance(double m) {
 
 /// The largest |node| of v (lerp_tolerance's m).
 inline double largest_magnitude(const Volume& v) {
-    double m = 0.0;
-    const auto& n = v.dims();
-    for (std::int64_t k = 0; k < n[2]; ++k)
-        for (std::int64_t j = 0; j < n[1]; ++j)
-            for (std::int64_t i = 0; i < n[0]; ++i) m = std::max(m, std::abs(v.value(i, j, k)));
-    return m;
+    const auto [lo, hi] = v.value_range();
+    return std::max(std::abs(lo), std::abs(hi));
 }
 
 /// How far a value of an image of the SIMD path may lie from the scalar
