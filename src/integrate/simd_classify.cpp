@@ -19,6 +19,7 @@
 #include <hwy/highway.h>
 
 #include "integrate/exp_neg-inl.h"
+#include "integrate/gather-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace fathom::simd {
@@ -104,10 +105,10 @@ HWY_INLINE void gather_pair(DI di, const BatchSource& src, VI o, VI last, VI& lo
     hn::Vec<decltype(du)> w;
     if constexpr (sizeof(T) == 1) {
         const auto o4 = hn::Min(o, last);
-        w = hn::BitCast(du, hn::GatherOffset(di, words, o4));
+        w = hn::BitCast(du, gather::Words(di, words, o4));
         w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(o, o4))));
     } else {
-        w = hn::BitCast(du, hn::GatherOffset(di, words, o));
+        w = hn::BitCast(du, gather::Words(di, words, o));
     }
     const auto wi = hn::BitCast(di, w);
     if constexpr (std::is_same_v<T, std::uint8_t>) {
@@ -185,8 +186,7 @@ HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
         const hn::Rebind<std::uint64_t, D> dq;
         const hn::Rebind<std::uint32_t, D> du;
         const hn::Rebind<float, D> df;
-        const auto w =
-            hn::GatherOffset(dq, static_cast<const std::uint64_t*>(src.data), hn::ConvertTo(dl, o));
+        const auto w = gather::Words(dq, static_cast<const std::uint64_t*>(src.data), hn::ConvertTo(dl, o));
         v[0] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, w)));
         v[1] = hn::PromoteTo(d, hn::BitCast(df, hn::TruncateTo(du, hn::ShiftRight<32>(w))));
     } else {
@@ -225,8 +225,8 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
             auto block = [&](int a) { return hn::Floor(hn::Mul(hn::Load(d, cell[a] + b), half)); };
             const V blocks = hn::Add(block(0), hn::Mul(bx, hn::Add(block(1), hn::Mul(by, block(2)))));
             const auto ni = hn::DemoteTo(di, blocks);
-            const auto word =
-                hn::GatherIndex(di, reinterpret_cast<const std::int32_t*>(src.active), hn::ShiftRight<5>(ni));
+            const auto word = gather::Words(di, reinterpret_cast<const std::int32_t*>(src.active),
+                                            hn::ShiftLeft<2>(hn::ShiftRight<5>(ni)));
             const auto bit = hn::And(hn::Shr(word, hn::And(ni, hn::Set(di, 31))), hn::Set(di, 1));
             if (hn::AllTrue(di, hn::Eq(bit, hn::Zero(di)))) {
                 hn::Store(hn::Set(d, -INFINITY), d, out + b);
@@ -275,7 +275,7 @@ HWY_INLINE void gather_triple(D d, const BatchSource& src, V o, V* v) {
         const hn::Rebind<std::uint32_t, D> du;
         const auto oi = hn::DemoteTo(di, o);
         const auto o4 = hn::Min(oi, hn::Set(di, static_cast<std::int32_t>(bytes - 4)));
-        auto w = hn::BitCast(du, hn::GatherOffset(di, reinterpret_cast<const std::int32_t*>(src.data), o4));
+        auto w = hn::BitCast(du, gather::Words(di, reinterpret_cast<const std::int32_t*>(src.data), o4));
         w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(oi, o4))));
         const auto wi = hn::BitCast(di, w);
         if constexpr (std::is_signed_v<T>) {
@@ -293,7 +293,7 @@ HWY_INLINE void gather_triple(D d, const BatchSource& src, V o, V* v) {
         const hn::Rebind<std::uint64_t, D> dq;
         const auto ol = hn::ConvertTo(dl, o);
         const auto o8 = hn::Min(ol, hn::Set(dl, bytes - 8));
-        auto w = hn::GatherOffset(dq, static_cast<const std::uint64_t*>(src.data), o8);
+        auto w = gather::Words(dq, static_cast<const std::uint64_t*>(src.data), o8);
         w = hn::operator>>(w, hn::BitCast(dq, hn::ShiftLeft<3>(hn::Sub(ol, o8))));
         const auto wl = hn::BitCast(dl, w);
         if constexpr (std::is_signed_v<T>) {

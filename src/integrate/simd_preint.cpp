@@ -19,6 +19,7 @@
 #include <hwy/highway.h>
 
 #include "integrate/exp_neg-inl.h"
+#include "integrate/gather-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace fathom::simd {
@@ -71,11 +72,11 @@ struct Piece {
                 y1[c] = hn::TableLookupLanes(y, ihi);
             }
         } else {
-            k0 = hn::GatherIndex(d, f.knots.data(), lo);
-            inv = hn::GatherIndex(d, f.inv.data(), lo);
+            k0 = gather::Doubles(d, f.knots.data(), lo);
+            inv = gather::Doubles(d, f.inv.data(), lo);
             for (int c = 0; c < f.components; ++c) {
-                y0[c] = hn::GatherIndex(d, f.y[c].data(), lo);
-                y1[c] = hn::GatherIndex(d, f.y[c].data(), hi);
+                y0[c] = gather::Doubles(d, f.y[c].data(), lo);
+                y1[c] = gather::Doubles(d, f.y[c].data(), hi);
             }
         }
         for (int c = 0; c < f.components; ++c) {
@@ -225,7 +226,7 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
     auto cut_at = [&](VI m, M cut) {
         VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, m), hn::Sub(first, m));
         at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
-        const V knot = hn::GatherIndex(d, breaks.data(), at);
+        const V knot = gather::Doubles(d, breaks.data(), at);
         return hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
     };
     V E[3] = {zero, zero, zero};
@@ -281,7 +282,7 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
 HWY_INLINE V Column(D d, const IntegralFunctions& f, std::size_t c, VI p) {
     if (f.rows() <= hn::Lanes(d))
         return hn::TableLookupLanes(hn::LoadU(d, f.col[c].data()), hn::IndicesFromVec(d, p));
-    return hn::GatherIndex(d, f.col[c].data(), p);
+    return gather::Doubles(d, f.col[c].data(), p);
 }
 
 void PreintegrateBatch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
