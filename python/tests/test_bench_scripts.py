@@ -88,3 +88,55 @@ def test_ab_reports_a_failing_build_and_needs_the_separator(tmp_path):
     assert out.returncode != 0
     assert "no such volume" in out.stderr
     assert ab(base, base, "--preset", "ct-bone").returncode != 0
+
+
+def fake_threaded_fathom(path, seconds):
+    """A stand-in for `fathom` whose `bench --threads T --json FILE` reports seconds[T]'s
+    next value and appends T to calls.log beside it."""
+    log = path.parent / "calls.log"
+    path.write_text(f"""#!{sys.executable}
+import json, os, sys
+times = {seconds!r}
+t = sys.argv[sys.argv.index("--threads") + 1]
+state = {str(path)!r} + "." + t
+n = int(open(state).read()) if os.path.exists(state) else 0
+open(state, "w").write(str(n + 1))
+open({str(log)!r}, "a").write(t + "\\n")
+assert sys.argv[1] == "bench" and "--preset" in sys.argv
+json.dump({{"median_seconds": times[t][n]}}, open(sys.argv[sys.argv.index("--json") + 1], "w"))
+""")
+    path.chmod(0o755)
+    return str(path)
+
+
+def scaling(*args):
+    return subprocess.run([sys.executable, str(ROOT / "bench" / "scaling.py"), *args], capture_output=True,
+                          text=True)
+
+
+def test_scaling_alternates_the_thread_counts_and_takes_the_median_speed_up(tmp_path):
+    fathom = fake_threaded_fathom(tmp_path / "fathom", {"1": [0.190, 0.300, 0.200], "2": [0.100, 0.150, 0.125]})
+    out = scaling("--fathom", fathom, "--pairs", "3", "--", "--volume", "v.nrrd", "--preset", "ct-bone")
+    assert out.returncode == 0, out.stderr
+    assert "1 thread  0.190 / 0.300 / 0.200 s" in out.stdout
+    assert "2 threads 0.100 / 0.150 / 0.125 s" in out.stdout
+    assert "per pair 1.90 / 2.00 / 1.60; median 1.90x" in out.stdout
+    assert (tmp_path / "calls.log").read_text().split() == ["1", "2"] * 3
+
+
+def test_scaling_takes_other_thread_counts(tmp_path):
+    fathom = fake_threaded_fathom(tmp_path / "fathom", {"2": [0.2], "4": [0.1]})
+    out = scaling("--fathom", fathom, "--pairs", "1", "--threads", "2,4", "--", "--preset", "ct-bone")
+    assert out.returncode == 0, out.stderr
+    assert "per pair 2.00; median 2.00x" in out.stdout
+
+
+def test_scaling_refuses_its_own_threads_in_the_bench_arguments_and_bad_counts(tmp_path):
+    fathom = fake_threaded_fathom(tmp_path / "fathom", {"1": [0.2], "2": [0.1]})
+    out = scaling("--fathom", fathom, "--", "--preset", "ct-bone", "--threads", "2")
+    assert out.returncode != 0 and "leave it out" in out.stderr
+    for bad in ("2,1", "1", "one,two", "0,2"):
+        out = scaling("--fathom", fathom, "--threads", bad, "--", "--preset", "ct-bone")
+        assert out.returncode != 0 and "--threads wants" in out.stderr, bad
+    assert not (tmp_path / "calls.log").exists()
+    assert scaling("--fathom", fathom, "--preset", "ct-bone").returncode != 0
