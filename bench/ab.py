@@ -37,6 +37,25 @@ def run_once(binary, args):
             return float(json.load(f)["median_seconds"])
 
 
+def alternate(pairs, first, second):
+    """Runs first() and second() in turn, `pairs` times: their lists of results."""
+    a, b = [], []
+    for _ in range(pairs):
+        a.append(first())
+        b.append(second())
+    return a, b
+
+
+def report(first_label, first, second_label, second, ratio_label):
+    """Prints both sides' frames and the ratio first / second of every pair, with their median."""
+    width = max(len(first_label), len(second_label))
+    ratios = [x / y for x, y in zip(first, second)]
+    fmt = " / ".join
+    print(f"{first_label:<{width}} {fmt(f'{t:.3f}' for t in first)} s")
+    print(f"{second_label:<{width}} {fmt(f'{t:.3f}' for t in second)} s")
+    print(f"{ratio_label} per pair {fmt(f'{r:.2f}' for r in ratios)}; median {statistics.median(ratios):.2f}x")
+
+
 def main(argv):
     if "--" not in argv:
         sys.exit(__doc__.strip())
@@ -49,15 +68,9 @@ def main(argv):
     bench_args = argv[cut + 1:]
     if opts.pairs < 1:
         sys.exit("--pairs must be at least 1")
-    base, new = [], []
-    for _ in range(opts.pairs):
-        base.append(run_once(opts.base, bench_args))
-        new.append(run_once(opts.new, bench_args))
-    ratios = [b / n for b, n in zip(base, new)]
-    fmt = " / ".join
-    print(f"base {fmt(f'{t:.3f}' for t in base)} s")
-    print(f"new  {fmt(f'{t:.3f}' for t in new)} s")
-    print(f"base / new per pair {fmt(f'{r:.2f}' for r in ratios)}; median {statistics.median(ratios):.2f}x")
+    base, new = alternate(opts.pairs, lambda: run_once(opts.base, bench_args),
+                          lambda: run_once(opts.new, bench_args))
+    report("base", base, "new", new, "base / new")
 
 
 if __name__ == "__main__":

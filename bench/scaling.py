@@ -18,11 +18,10 @@ BENCH-ARGS must not set --threads.
 """
 import argparse
 import os
-import statistics
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ab import run_once  # noqa: E402
+from ab import alternate, report, run_once  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -47,15 +46,9 @@ def main(argv):
         sys.exit(f"--threads wants two counts A,B, not '{opts.threads}'")
     if not 1 <= few < many:
         sys.exit(f"--threads wants 1 <= A < B, not '{opts.threads}'")
-    a, b = [], []
-    for _ in range(opts.pairs):
-        a.append(run_once(opts.fathom, [*bench_args, "--threads", str(few)]))
-        b.append(run_once(opts.fathom, [*bench_args, "--threads", str(many)]))
-    ratios = [x / y for x, y in zip(a, b)]
-    fmt = " / ".join
-    print(f"{few} thread{'s' if few > 1 else ''}  {fmt(f'{t:.3f}' for t in a)} s")
-    print(f"{many} threads {fmt(f'{t:.3f}' for t in b)} s")
-    print(f"speed-up per pair {fmt(f'{r:.2f}' for r in ratios)}; median {statistics.median(ratios):.2f}x")
+    a, b = alternate(opts.pairs, lambda: run_once(opts.fathom, [*bench_args, "--threads", str(few)]),
+                     lambda: run_once(opts.fathom, [*bench_args, "--threads", str(many)]))
+    report(f"{few} thread{'s' if few > 1 else ''}", a, f"{many} threads", b, "speed-up")
 
 
 if __name__ == "__main__":
