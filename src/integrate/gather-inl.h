@@ -6,7 +6,8 @@
 // AVX2 gathers as long microcoded sequences, slower than the loads
 // (docs/performance.md, "Gathers"). The other targets keep Highway's own:
 // SSE4 has no gather instruction (Highway loads lane by lane already), and
-// the AVX-512 ones were not measured against loads.
+// the AVX-512 ones keep the instruction: 8 loads and their inserts measured
+// even on a Zen 5 and slower on a Zen 4.
 //
 // Highway's per-target header pattern: included once per target by
 // foreach_target, after <hwy/highway.h>.
