@@ -391,8 +391,9 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
         std::uniform_real_distribution<double> any(lo, hi);
         std::uniform_int_distribution<std::size_t> pick(0, knots.size() - 1);
         for (int trial = 0; trial < 60; ++trial) {
-            alignas(64) double ends[simd::kBatch + 1] = {};
-            for (int j = 0; j < simd::kBatch; ++j) {
+            // up to kBatch + 1 ends (kBatch segments), kBatch + 8 readable
+            alignas(64) double ends[simd::kBatch + 8] = {};
+            for (int j = 0; j <= simd::kBatch; ++j) {
                 const int kind = static_cast<int>(rng() % 8);
                 const double near = j > 0 ? ends[j - 1] + (std::abs(ends[j - 1] - knots.front()) + 1.0) *
                                                               preint::kFlatRamp * (kind == 2 ? 2.5 : 0.5)
@@ -405,10 +406,10 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
             if (trial % 4 == 1) {  // every end between the same two control values: one piece per ramp
                 const std::size_t k = pick(rng) % (knots.size() - 1);
                 std::uniform_real_distribution<double> inside(knots[k], knots[k + 1]);
-                for (int j = 0; j < simd::kBatch; ++j) ends[j] = j % 5 == 4 ? ends[j - 1] : inside(rng);
+                for (int j = 0; j <= simd::kBatch; ++j) ends[j] = j % 5 == 4 ? ends[j - 1] : inside(rng);
             }
             if (trial == 5) ends[3] = std::numeric_limits<double>::quiet_NaN();
-            const int count = 2 + trial % (simd::kBatch - 1);
+            const int count = 2 + trial % simd::kBatch;
             const std::uint32_t skip = trial % 3 == 0 ? 0x5u : 0u;
             for (Model model : {Model::emission_absorption, Model::absorption, Model::emission}) {
                 // as the renderer sets it: the ramps leave out their pieces below it

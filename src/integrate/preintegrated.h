@@ -233,7 +233,15 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // SIMD: the ends `win` holds in `batch`; run_end is the last end the
     // evaluated run needs (set by the skipping walk).
     const simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, 0.0, 0};
-    alignas(64) double batch[simd::kBatch + 1] = {};  // + 1: preintegrate_batch reads one past
+    // The window's ends (batch[l]: end win.b0 + l): up to kBatch
+    // interpolated at store + kCarry, 64-byte aligned, and where the window
+    // goes on from the last one, that one's last end carried over beside
+    // them (the same bits: the same end), so that a window of kBatch + 1
+    // ends gives kBatch segments (whole vectors) and no end is interpolated
+    // twice.
+    constexpr int kCarry = 8;
+    alignas(64) double store[kCarry + simd::kBatch + 8] = {};  // preintegrate_batch reads past the last end
+    const double* batch = store + kCarry;
     simd::Window win;
     // The segments between the window's ends, computed on the first request.
     simd::SegmentBatch segs;
@@ -246,12 +254,40 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     bool shades_ready = false;
     std::int64_t run_end = s.order == Order::front_to_back ? n : 0;
     std::uint32_t below = 0;  // bit l: end win.b0 + l is below simd->zero_below
+    bool masked = false;      // whether `below` holds the window's bits
     // The batch of ends from j in the direction of travel; with `mask`, also
     // which of them lie below the medium's zero range (the skipping walk's).
     auto load_window = [&](std::int64_t j, bool mask) {
-        win.start_at(j, s.order == Order::front_to_back, run_end);
-        below = 0;
-        simd::interpolate_batch(*simd, rg, win.b0, win.count(), batch, mask ? &below : nullptr);
+        const bool forward = s.order == Order::front_to_back;
+        // the last window's end at j, carried over (its bits too where the new ones are needed)
+        const bool carry = (forward ? win.b1 == j : win.b0 == j) && (masked || !mask);
+        const double carried = carry ? batch[j - win.b0] : 0.0;
+        const std::uint32_t carried_bit = carry && mask ? (below >> (j - win.b0)) & 1u : 0u;
+        double* fresh = store + kCarry;
+        std::uint32_t bits = 0;
+        if (!carry) {
+            win.start_at(j, forward, run_end);
+            simd::interpolate_batch(*simd, rg, win.b0, win.count(), fresh, mask ? &bits : nullptr);
+            batch = fresh;
+        } else if (forward) {  // ends j (carried), j + 1 … win.b1
+            win.b0 = j;
+            win.b1 = std::min<std::int64_t>(j + simd::kBatch, std::max(j, run_end));
+            const auto k = static_cast<int>(win.b1 - j);
+            if (k > 0) simd::interpolate_batch(*simd, rg, j + 1, k, fresh, mask ? &bits : nullptr);
+            store[kCarry - 1] = carried;
+            batch = store + kCarry - 1;
+            bits = bits << 1 | carried_bit;
+        } else {  // ends win.b0 … j − 1, j (carried)
+            win.b0 = std::max<std::int64_t>(j - simd::kBatch, std::min(j, run_end));
+            win.b1 = j;
+            const auto k = static_cast<int>(j - win.b0);
+            if (k > 0) simd::interpolate_batch(*simd, rg, win.b0, k, fresh, mask ? &bits : nullptr);
+            fresh[k] = carried;
+            batch = fresh;
+            bits |= carried_bit << k;
+        }
+        below = bits;
+        masked = mask;
         segs_ready = false;
         shades_ready = false;
     };

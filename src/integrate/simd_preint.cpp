@@ -296,7 +296,7 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
     // Without self-attenuation: S and G at every end once (integral_segment).
     const IntegralFunctions* f =
         !full && src.integrals != nullptr && !src.integrals->empty() ? src.integrals : nullptr;
-    HWY_ALIGN double S[kBatch + hn::MaxLanes(d)], G[3][kBatch + hn::MaxLanes(d)];
+    HWY_ALIGN double S[kBatch + 2 * hn::MaxLanes(d)], G[3][kBatch + 2 * hn::MaxLanes(d)];
     const bool absorb = model != Model::emission, source = model != Model::absorption;
     if (f != nullptr) {
         using F = IntegralFunctions;

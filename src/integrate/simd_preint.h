@@ -28,8 +28,9 @@ struct SegmentBatch {
 };
 
 /// Pre-integrates the segments between consecutive `ends` (the scalar at
-/// segment ends j0 … j0 + count − 1, camera side first; `ends` holds kBatch
-/// + 1 values, the last read but not used) of length `delta` under `model`
+/// segment ends j0 … j0 + count − 1, count ≤ kBatch + 1, camera side first;
+/// `ends` holds kBatch + 8 values, those past the last read but not used)
+/// of length `delta` under `model`
 /// (emission–absorption, absorption or emission), with self-attenuation
 /// when `full`. src.sigma, src.color, src.breaks, src.associated and
 /// src.integrals describe the transfer function (without src.integrals every
