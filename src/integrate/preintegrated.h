@@ -265,25 +265,19 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         const std::uint32_t carried_bit = carry && mask ? (below >> (j - win.b0)) & 1u : 0u;
         double* fresh = store + kCarry;
         std::uint32_t bits = 0;
-        if (!carry) {
-            win.start_at(j, forward, run_end);
-            simd::interpolate_batch(*simd, rg, win.b0, win.count(), fresh, mask ? &bits : nullptr);
-            batch = fresh;
-        } else if (forward) {  // ends j (carried), j + 1 … win.b1
-            win.b0 = j;
-            win.b1 = std::min<std::int64_t>(j + simd::kBatch, std::max(j, run_end));
-            const auto k = static_cast<int>(win.b1 - j);
-            if (k > 0) simd::interpolate_batch(*simd, rg, j + 1, k, fresh, mask ? &bits : nullptr);
+        // with a carried end, kBatch new ones beside it (after it forward, before it backward)
+        win.start_at(j, forward, run_end, carry ? simd::kBatch + 1 : simd::kBatch);
+        const int k = carry ? win.count() - 1 : win.count();
+        if (k > 0)
+            simd::interpolate_batch(*simd, rg, carry && forward ? win.b0 + 1 : win.b0, k, fresh,
+                                    mask ? &bits : nullptr);
+        batch = fresh;
+        if (carry && forward) {  // ends j (carried), j + 1 … win.b1
             store[kCarry - 1] = carried;
             batch = store + kCarry - 1;
             bits = bits << 1 | carried_bit;
-        } else {  // ends win.b0 … j − 1, j (carried)
-            win.b0 = std::max<std::int64_t>(j - simd::kBatch, std::min(j, run_end));
-            win.b1 = j;
-            const auto k = static_cast<int>(j - win.b0);
-            if (k > 0) simd::interpolate_batch(*simd, rg, win.b0, k, fresh, mask ? &bits : nullptr);
+        } else if (carry) {  // ends win.b0 … j − 1, j (carried)
             fresh[k] = carried;
-            batch = fresh;
             bits |= carried_bit << k;
         }
         below = bits;

@@ -120,19 +120,19 @@ struct RayGrid {
     Vec3 view{};
 };
 
-/// The samples a batch holds, b0..b1: up to kBatch from the one asked for,
-/// in the direction of travel, not beyond `run_end` (the end of the run
-/// being evaluated: what follows may be skipped).
+/// The samples a batch holds, b0..b1: up to `size` (kBatch unless said)
+/// from the one asked for, in the direction of travel, not beyond `run_end`
+/// (the end of the run being evaluated: what follows may be skipped).
 struct Window {
     std::int64_t b0 = std::numeric_limits<std::int64_t>::min() / 2, b1 = b0;
     [[nodiscard]] bool holds(std::int64_t j) const { return j >= b0 && j <= b1; }
     [[nodiscard]] int count() const { return static_cast<int>(b1 - b0 + 1); }
-    void start_at(std::int64_t j, bool forward, std::int64_t run_end) {
+    void start_at(std::int64_t j, bool forward, std::int64_t run_end, std::int64_t size = kBatch) {
         if (forward) {
             b0 = j;
-            b1 = std::min<std::int64_t>(j + kBatch - 1, std::max(j, run_end));
+            b1 = std::min<std::int64_t>(j + size - 1, std::max(j, run_end));
         } else {
-            b0 = std::max<std::int64_t>(j - kBatch + 1, std::min(j, run_end));
+            b0 = std::max<std::int64_t>(j - size + 1, std::min(j, run_end));
             b1 = j;
         }
     }
