@@ -94,6 +94,7 @@ void run_bench(const BenchArgs& a) {
                      {"dtype", std::string(dtype_name(dtype))},
                      {"skip_empty", sc.settings.skip_empty},
                      {"bricks", r.bricked()},
+                     {"packets", r.packets()},
                      {"macrocell_cells", r.macrocell_cells()},
                      {"cpu", cpu_name()},
                      {"hardware_threads", std::thread::hardware_concurrency()},

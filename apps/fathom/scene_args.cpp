@@ -132,6 +132,8 @@ void SceneArgs::add_to(CLI::App* cmd) {
                     "repeat for up to 6; replaces the scene's");
     cmd->add_flag("--no-simd", this->overrides.no_simd,
                   "Turn off SIMD sample classification (to measure it; the same image to a few ulp of double)");
+    cmd->add_flag("--no-packets", this->overrides.no_packets,
+                  "Trace rays one by one instead of in SIMD packets (same image; to measure it)");
     cmd->add_flag("--no-bricks", this->overrides.no_bricks,
                   "Keep a large volume's samples x-fastest instead of in bricks (same image; to measure it)");
 }

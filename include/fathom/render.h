@@ -133,6 +133,12 @@ struct RenderSettings {
     /// SIMD classification of point samples (riemann, alpha) with runtime
     /// dispatch; bit-identical to the scalar path. Off only to measure it.
     bool simd = true;
+    /// Ray packets: riemann and alpha, unshaded, front to back, with
+    /// skipping and SIMD, trace a tile's rays one per SIMD lane, each lane
+    /// walking and sampling its own ray (docs/performance.md "Ray
+    /// packets"); bit-identical to tracing them one by one. Off only to
+    /// measure it.
+    bool packets = true;
     /// A renderer that keeps its volume (Renderer(Volume&&, ...)) moves the
     /// samples into bricks of 32³ cells (the x-fastest copy handed back as
     /// they fill) where the volume has at least this many bytes, the bricks
@@ -190,6 +196,8 @@ public:
     [[nodiscard]] const RenderSettings& settings() const;
     /// Whether the renderer samples its volume from bricks.
     [[nodiscard]] bool bricked() const;
+    /// Whether its frames trace rays in SIMD packets (RenderSettings::packets).
+    [[nodiscard]] bool packets() const;
     /// Cells per edge of the macrocells its rays skip by (2 or 4; see
     /// RenderSettings::fine_macrocells_max), or 0 where they skip by none
     /// (skipping off, nothing empty, or the projections' ranges alone).

@@ -49,6 +49,7 @@ struct SceneOverrides {
     bool jitter = false;         // turns jitter on
     bool no_skip_empty = false;  // turns empty-space skipping off
     bool no_simd = false;        // turns SIMD classification off
+    bool no_packets = false;     // traces rays one by one (RenderSettings::packets)
     bool no_bricks = false;      // keeps the volume x-fastest (RenderSettings::brick_min_bytes)
     bool shade = false;          // turns shading on
     std::optional<std::uint32_t> jitter_seed;

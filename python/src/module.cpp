@@ -186,6 +186,7 @@ const std::pair<const char*, Setter> kOverrides[] = {
     {"jitter_seed", [](SceneOverrides& o, const py::handle& v) { o.jitter_seed = v.cast<std::uint32_t>(); }},
     {"no_skip_empty", [](SceneOverrides& o, const py::handle& v) { o.no_skip_empty = v.cast<bool>(); }},
     {"no_simd", [](SceneOverrides& o, const py::handle& v) { o.no_simd = v.cast<bool>(); }},
+    {"no_packets", [](SceneOverrides& o, const py::handle& v) { o.no_packets = v.cast<bool>(); }},
     {"no_bricks", [](SceneOverrides& o, const py::handle& v) { o.no_bricks = v.cast<bool>(); }},
     {"shade", [](SceneOverrides& o, const py::handle& v) { o.shade = v.cast<bool>(); }},
     {"iso", [](SceneOverrides& o, const py::handle& v) { o.isos = number_lists(v, "iso"); }},

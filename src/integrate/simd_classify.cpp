@@ -697,6 +697,296 @@ void classify_typed(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
     }
 }
 
+/// Bytes of `bytes` (size ≥ 4) at indices i (exact integers in doubles), as doubles.
+HWY_INLINE V GatherBytes(D d, const std::uint8_t* bytes, std::int64_t size, V i) {
+    const hn::Rebind<std::int32_t, D> di;
+    const hn::Rebind<std::uint32_t, D> du;
+    const auto o = hn::DemoteTo(di, i);
+    const auto o4 = hn::Min(o, hn::Set(di, static_cast<std::int32_t>(size - 4)));
+    auto w = hn::BitCast(du, gather::Words(di, reinterpret_cast<const std::int32_t*>(bytes), o4));
+    w = hn::operator>>(w, hn::BitCast(du, hn::ShiftLeft<3>(hn::Sub(o, o4))));
+    return hn::PromoteTo(d, hn::BitCast(di, hn::And(w, hn::Set(du, 0xFFu))));
+}
+
+/// Vectors of lanes in a packet: two, so that one vector's gathers overlap
+/// the other's arithmetic, and each branch serves both.
+constexpr std::size_t kPacketVectors = 2;
+constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a vector at most
+constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
+
+/// The lanes of a packet: one ray each (PacketRay's fields, lane by lane),
+/// its place in the sample grid, its walk and its accumulators.
+struct PacketLanes {
+    static constexpr std::size_t L = kPacketLanesMax;
+    HWY_ALIGN double p0[3][L], dp[3][L], tn[L], dl[L], off[L], n[L], A[3][L], B[3][L], before[L], after[L];
+    HWY_ALIGN double i[L];                        // the next sample
+    HWY_ALIGN double run_end[L];                  // the last sample of the run being evaluated (< i: none)
+    HWY_ALIGN double next_start[L], next_end[L];  // the next non-empty run (start > end: none yet)
+    HWY_ALIGN double w[L];                        // where the walk goes on
+    HWY_ALIGN double T[L], C[3][L];
+    HWY_ALIGN double live[L];  // 1: the lane holds a ray
+    std::int64_t ray[L];
+
+    /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values).
+    void load(std::size_t l, const PacketRay* r, std::int64_t k) {
+        ray[l] = k;
+        live[l] = r != nullptr ? 1.0 : 0.0;
+        for (int a = 0; a < 3; ++a) {
+            p0[a][l] = r != nullptr ? r->p0[a] : 0.0;
+            dp[a][l] = r != nullptr ? r->dp[a] : 0.0;
+            A[a][l] = r != nullptr ? r->A[a] : 0.0;
+            B[a][l] = r != nullptr ? r->B[a] : 0.0;
+            C[a][l] = 0.0;
+        }
+        tn[l] = r != nullptr ? r->t_near : 0.0;
+        dl[l] = r != nullptr ? r->delta : 0.0;
+        off[l] = r != nullptr ? r->offset : 0.0;
+        n[l] = r != nullptr ? r->n : 0.0;
+        before[l] = r != nullptr ? r->before : -1.0;
+        after[l] = r != nullptr ? r->after : 2.0;
+        i[l] = w[l] = next_start[l] = 1.0;
+        run_end[l] = next_end[l] = 0.0;
+        T[l] = 1.0;
+    }
+};
+
+/// Positions of samples j of the rays of lanes o … o + N − 1: SampleGrid::at (first = 1).
+HWY_INLINE void LanePositions(D d, const PacketLanes& L, std::size_t o, V j, V* p) {
+    const V t =
+        hn::Add(hn::Load(d, L.tn + o),
+                hn::Mul(hn::Add(hn::Sub(j, hn::Set(d, 1.0)), hn::Load(d, L.off + o)), hn::Load(d, L.dl + o)));
+    for (int a = 0; a < 3; ++a)
+        p[a] = hn::Add(hn::Load(d, L.p0[a] + o), hn::Mul(hn::Load(d, L.dp[a] + o), t));
+}
+
+/// MacrocellLattice::macrocell per lane.
+HWY_INLINE void LaneMacrocells(D d, const PacketWalk& w, const V* p, V* m) {
+    const V per = hn::Set(d, 1.0 / static_cast<double>(std::int64_t{1} << w.shift));  // exact
+    for (int a = 0; a < 3; ++a) {
+        const V x = hn::Min(hn::Max(p[a], hn::Zero(d)), hn::Set(d, w.nodes[a] - 1.0));
+        const V c = hn::Min(hn::Floor(x), hn::Set(d, w.nodes[a] - 2.0));
+        m[a] = hn::Floor(hn::Mul(c, per));
+    }
+}
+
+/// RunFinder::run(j, +1, n) for the lanes o … o + N − 1 in `need`, from
+/// j = L.w: the walk moves past the run, and a non-empty one becomes the
+/// lane's next run.
+HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t o, M need) {
+    const V j = hn::Load(d, L.w + o), lim = hn::Load(d, L.n + o);
+    const V before = hn::Load(d, L.before + o), after = hn::Load(d, L.after + o);
+    const M pre = hn::And(need, hn::Le(j, before));
+    const M post = hn::AndNot(pre, hn::And(need, hn::Ge(j, after)));
+    V last = hn::IfThenElse(pre, hn::Min(before, lim), lim);
+    M empty = hn::Or(pre, post);
+    const M mid = hn::AndNot(empty, need);
+    if (!hn::AllFalse(d, mid)) {
+        V p[3], m[3];
+        LanePositions(d, L, o, j, p);
+        for (auto& x : p) x = hn::IfThenElseZero(mid, x);
+        LaneMacrocells(d, w, p, m);
+        const V idx = hn::Add(
+            m[0], hn::Mul(hn::Set(d, w.dims[0]), hn::Add(m[1], hn::Mul(hn::Set(d, w.dims[1]), m[2]))));
+        const M is_empty = hn::And(mid, hn::Ne(GatherBytes(d, w.empty, w.cells, idx), hn::Zero(d)));
+        const V r = hn::Sub(GatherBytes(d, w.ahead, w.cells, idx), hn::Set(d, 1.0));
+        const V edge = hn::Set(d, static_cast<double>(std::int64_t{1} << w.shift));
+        V lo[3], hi[3];
+        V x = hn::Set(d, INFINITY);
+        for (int a = 0; a < 3; ++a) {  // EmptySpace::box_ahead, box_face
+            const bool down = ((w.octant >> a) & 1) != 0;
+            lo[a] = down ? hn::Max(hn::Sub(m[a], r), hn::Zero(d)) : m[a];
+            hi[a] = down ? m[a] : hn::Min(hn::Add(m[a], r), hn::Set(d, w.dims[a] - 1.0));
+            const V face =
+                down ? hn::Mul(lo[a], edge)
+                     : hn::Min(hn::Mul(hn::Add(hi[a], hn::Set(d, 1.0)), edge), hn::Set(d, w.nodes[a] - 1.0));
+            x = hn::Min(x, hn::Add(hn::Mul(face, hn::Load(d, L.A[a] + o)), hn::Load(d, L.B[a] + o)));
+        }
+        // RunFinder::estimated_last: the exit, clamped to [j, n], floored
+        V k = hn::IfThenElse(hn::IsFinite(x), hn::Floor(hn::Min(hn::Max(x, j), lim)), lim);
+        // RunFinder::last_in for the empty ones: verified on the computed positions
+        for (M check = is_empty; !hn::AllFalse(d, check);) {
+            V pk[3], mk[3];
+            LanePositions(d, L, o, k, pk);
+            for (auto& c : pk) c = hn::IfThenElseZero(check, c);
+            LaneMacrocells(d, w, pk, mk);
+            M in_box = hn::Eq(k, j);
+            M inside = hn::Not(in_box);
+            for (int a = 0; a < 3; ++a)
+                inside = hn::And(inside, hn::And(hn::Ge(mk[a], lo[a]), hn::Le(mk[a], hi[a])));
+            check = hn::AndNot(hn::Or(in_box, inside), check);
+            k = hn::IfThenElse(check, hn::Sub(k, hn::Set(d, 1.0)), k);
+        }
+        last = hn::IfThenElse(mid, k, last);
+        empty = hn::Or(empty, is_empty);
+    }
+    const M found = hn::AndNot(empty, need);
+    hn::Store(hn::IfThenElse(need, hn::Add(last, hn::Set(d, 1.0)), j), d, L.w + o);
+    hn::Store(hn::IfThenElse(found, j, hn::Load(d, L.next_start + o)), d, L.next_start + o);
+    hn::Store(hn::IfThenElse(found, last, hn::Load(d, L.next_end + o)), d, L.next_end + o);
+}
+
+/// The segments of one sample per lane (ClassifyBatch's operations: the
+/// transfer function, the model, the rule), (1, 0) where `zero`.
+HWY_INLINE void LaneSegments(D d, const BatchSource& src, V v, V dl, M zero, V& t, V* rad) {
+    const V one = hn::Set(d, 1.0);
+    V r[3];
+    eval(d, *src.sigma, v, r);
+    const V sigma = r[0];
+    eval(d, *src.color, v, r);
+    V g[3];  // ScalarMedium::classify, then apply_model
+    for (int k = 0; k < 3; ++k)
+        g[k] = src.model == Model::absorption ? hn::Zero(d) : (src.associated ? r[k] : hn::Mul(r[k], sigma));
+    const V sa = src.model == Model::emission ? hn::Zero(d) : sigma;
+    const V x = hn::Mul(sa, dl);
+    V weight;
+    if (src.rule == PointRule::alpha) {
+        const V alpha = exp_v::OneMinusExpNeg(d, x);
+        weight = hn::IfThenElse(hn::Gt(sa, hn::Zero(d)), hn::Div(alpha, sa), dl);
+        t = hn::Sub(one, alpha);
+    } else {
+        t = exp_v::ExpNeg(d, x);
+        weight = dl;
+    }
+    for (int k = 0; k < 3; ++k) rad[k] = hn::Mul(g[k], weight);
+    const M outside = hn::AndNot(zero, hn::Not(exp_v::InRange(d, x)));
+    if (HWY_UNLIKELY(!hn::AllFalse(d, outside))) {  // ApplyRule's scalar lanes
+        const std::size_t N = hn::Lanes(d);
+        HWY_ALIGN double sl[8], dls[8], ts[8], gs[3][8], rs[3][8], om[8];
+        hn::Store(sa, d, sl);
+        hn::Store(dl, d, dls);
+        hn::Store(t, d, ts);
+        hn::Store(hn::IfThenElseZero(outside, one), d, om);
+        for (int k = 0; k < 3; ++k) {
+            hn::Store(g[k], d, gs[k]);
+            hn::Store(rad[k], d, rs[k]);
+        }
+        for (std::size_t l = 0; l < N; ++l) {
+            if (om[l] == 0.0) continue;
+            const MediumSample m{sl[l], {gs[0][l], gs[1][l], gs[2][l]}};
+            const Segment seg =
+                src.rule == PointRule::alpha ? alpha_segment(m, dls[l]) : riemann_segment(m, dls[l]);
+            ts[l] = seg.transmittance;
+            for (int k = 0; k < 3; ++k) rs[k][l] = seg.radiance[k];
+        }
+        t = hn::Load(d, ts);
+        for (int k = 0; k < 3; ++k) rad[k] = hn::Load(d, rs[k]);
+    }
+    t = hn::IfThenElse(zero, one, t);
+    for (int k = 0; k < 3; ++k) rad[k] = hn::IfThenElseZero(hn::Not(zero), rad[k]);
+}
+
+template <class T>
+void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const PacketRay* rays,
+                         std::size_t count, double termination, const double* bg, PacketResult* out) {
+    const D d;
+    const std::size_t N = hn::Lanes(d), lanes = kPacketVectors * N;
+    constexpr std::size_t K = kPacketVectors;
+    PacketLanes L;
+    std::size_t next = 0;
+    auto load = [&](std::size_t l) {
+        if (next < count) {
+            L.load(l, rays + next, static_cast<std::int64_t>(next));
+            ++next;
+        } else {
+            L.load(l, nullptr, -1);
+        }
+    };
+    for (std::size_t l = 0; l < lanes; ++l) load(l);
+    const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
+    HWY_ALIGN double cell[kPacketGroups][3][kBatch];
+    HWY_ALIGN double frac[kPacketGroups][3][kBatch];
+    HWY_ALIGN double values[kPacketGroups * kBatch];
+    // The lanes whose bit is set in `done` finish: their results, with the
+    // background where the ray went through (eq. (10)); then the next rays.
+    auto finish = [&](const M* done, bool background) {
+        HWY_ALIGN double mask[kPacketLanesMax];
+        for (std::size_t h = 0; h < K; ++h) hn::Store(hn::IfThenElseZero(done[h], one), d, mask + h * N);
+        for (std::size_t l = 0; l < lanes; ++l) {
+            if (mask[l] == 0.0) continue;
+            PacketResult& r = out[L.ray[l]];
+            const double tl = L.T[l];
+            for (int c = 0; c < 3; ++c) r.radiance[c] = background ? L.C[c][l] + tl * bg[c] : L.C[c][l];
+            r.alpha = 1.0 - tl;
+            load(l);
+        }
+    };
+    M live[K], mask[K];
+    for (;;) {
+        // Lanes past their run take the next one; the walk runs one run
+        // ahead of the samples, for every lane that has none, whenever a
+        // lane needs one, so that its vectors serve several lanes.
+        for (;;) {
+            bool urgent = false;
+            for (std::size_t h = 0; h < K; ++h) {
+                const std::size_t o = h * N;
+                live[h] = hn::Eq(hn::Load(d, L.live + o), one);
+                const V i = hn::Load(d, L.i + o), ns = hn::Load(d, L.next_start + o),
+                        ne = hn::Load(d, L.next_end + o), re = hn::Load(d, L.run_end + o);
+                const M ended = hn::And(live[h], hn::Gt(i, re));
+                const M has_next = hn::Le(ns, ne);
+                const M take = hn::And(ended, has_next);
+                hn::Store(hn::IfThenElse(take, ns, i), d, L.i + o);
+                hn::Store(hn::IfThenElse(take, ne, re), d, L.run_end + o);
+                const V ns2 = hn::IfThenElse(take, hn::Add(ne, one), ns);  // none left
+                hn::Store(ns2, d, L.next_start + o);
+                const M walking = hn::And(live[h], hn::Le(hn::Load(d, L.w + o), hn::Load(d, L.n + o)));
+                urgent = urgent || !hn::AllFalse(d, hn::AndNot(has_next, hn::And(ended, walking)));
+                mask[h] = hn::AndNot(hn::Le(ns2, ne), walking);  // every lane that has no next run
+            }
+            if (!urgent) break;
+            for (std::size_t h = 0; h < K; ++h)
+                if (!hn::AllFalse(d, mask[h])) WalkLanes(d, w, L, h * N, mask[h]);
+        }
+        // lanes past their last run: finished
+        bool any_live = false, through = false;
+        for (std::size_t h = 0; h < K; ++h) {
+            mask[h] = hn::And(live[h], hn::Gt(hn::Load(d, L.i + h * N), hn::Load(d, L.run_end + h * N)));
+            any_live = any_live || !hn::AllFalse(d, live[h]);
+            through = through || !hn::AllFalse(d, mask[h]);
+        }
+        if (!any_live) return;
+        if (through) {
+            finish(mask, true);
+            continue;
+        }
+        // one sample per lane
+        for (std::size_t h = 0; h < K; ++h) {
+            V p[3];
+            LanePositions(d, L, h * N, hn::Load(d, L.i + h * N), p);
+            const std::size_t g = h * N / kBatch, b = h * N % kBatch;
+            for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[g], frac[g]);
+        }
+        for (std::size_t g = 0; g * kBatch < lanes; ++g)
+            trilinear<T>(src, cell[g], frac[g], 0, std::min<std::size_t>(kBatch, lanes - g * kBatch),
+                         values + g * kBatch, false);
+        bool stop = false;
+        for (std::size_t h = 0; h < K; ++h) {
+            const std::size_t o = h * N;
+            const M zero = hn::Or(hn::Lt(hn::Load(d, values + o), e), hn::Not(live[h]));
+            V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
+            if (!hn::AllTrue(d, zero))
+                LaneSegments(d, src, hn::Load(d, values + o), hn::Load(d, L.dl + o), zero, t, rad);
+            // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
+            V tr = hn::Load(d, L.T + o);
+            for (int k = 0; k < 3; ++k)
+                hn::Store(hn::Add(hn::Load(d, L.C[k] + o), hn::Mul(tr, rad[k])), d, L.C[k] + o);
+            tr = hn::Mul(tr, t);
+            hn::Store(tr, d, L.T + o);
+            const V i = hn::Load(d, L.i + o);
+            hn::Store(hn::IfThenElse(live[h], hn::Add(i, one), i), d, L.i + o);
+            mask[h] = hn::And(live[h], hn::Lt(tr, thr));
+            stop = stop || !hn::AllFalse(d, mask[h]);
+        }
+        if (stop) finish(mask, false);
+    }
+}
+
+void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* rays, std::size_t count,
+                  double termination, const double* bg, PacketResult* out) {
+    visit_dtype(src.type,
+                [&]<class T>(T*) { trace_packets_typed<T>(src, w, rays, count, termination, bg, out); });
+}
+
 void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     visit_dtype(src.type, [&]<class T>(T*) { classify_typed<T>(src, ray, j0, count, out); });
 }
@@ -757,6 +1047,7 @@ HWY_EXPORT(InterpolateBatch);
 HWY_EXPORT(ShadeBatchAt);
 HWY_EXPORT(TargetOf);
 HWY_EXPORT(FusedOf);
+HWY_EXPORT(TracePackets);
 
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     HWY_DYNAMIC_DISPATCH(ClassifyBatch)(src, ray, j0, count, out);
@@ -765,6 +1056,11 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
 void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
                        std::uint32_t* below) {
     HWY_DYNAMIC_DISPATCH(InterpolateBatch)(src, ray, j0, count, out, below);
+}
+
+void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
+                   double termination, const double* bg, PacketResult* out) {
+    HWY_DYNAMIC_DISPATCH(TracePackets)(src, walk, rays, count, termination, bg, out);
 }
 
 void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, std::uint32_t skip,

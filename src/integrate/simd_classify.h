@@ -193,6 +193,46 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
 void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
                        std::uint32_t* below = nullptr);
 
+/// Ray packets (docs/performance.md "Ray packets"): the point-sampled
+/// quadratures (BatchSource::rule, unshaded, front to back, with skipping)
+/// traced several rays at a time, one ray per lane, each lane walking its
+/// own ray's macrocells and evaluating its own samples, with the same
+/// operations on each lane as classify_batch and RunFinder on that ray, so
+/// the same bits as the ray-by-ray path.
+///
+/// One ray: its sample grid (segments 1..n at t_near + (j − 1 + offset)·δ)
+/// and RunFinder's forward walk.
+struct PacketRay {
+    double p0[3], dp[3];
+    double t_near, delta, offset;
+    double n;              // segments 1..n (an exact integer)
+    double A[3], B[3];     // RunFinder's forward axes: the fractional index at node coordinate f is f·A + B
+    double before, after;  // samples j ≤ before or ≥ after lie in empty macrocells
+};
+
+/// The macrocells a packet walks (EmptySpace), in the octant all its rays
+/// travel in.
+struct PacketWalk {
+    const std::uint8_t* empty = nullptr;  // per macrocell: 1 where empty
+    const std::uint8_t* ahead = nullptr;  // distance_ahead in `octant`
+    std::int64_t cells = 0;               // macrocells (at least 4)
+    double dims[3] = {0, 0, 0};           // macrocells per axis
+    double nodes[3] = {0, 0, 0};          // lattice nodes per axis
+    int shift = 0;                        // cells per macrocell edge: 2^shift
+    int octant = 0;                       // bit a: the rays go down axis a
+};
+
+struct PacketResult {
+    double radiance[3];
+    double alpha;
+};
+
+/// Traces rays[0..count) (see PacketRay) under src's rule and model with
+/// front-to-back compositing, early termination below `termination` and
+/// background `bg`: out[k] is ray k's result, as composite() would give it.
+void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
+                   double termination, const double* bg, PacketResult* out);
+
 /// ShadedScalarMedium::factors (on-the-fly gradients, BatchSource::shade)
 /// at points j0 .. j0 + count − 1 of `ray` (count ≤ kBatch), per lane.
 struct ShadeBatch {

@@ -404,6 +404,7 @@ void apply_overrides(RenderSettings& s, const SceneOverrides& o, const std::stri
     if (o.jitter) s.jitter = true;
     if (o.no_skip_empty) s.skip_empty = false;
     if (o.no_simd) s.simd = false;
+    if (o.no_packets) s.packets = false;
     if (o.no_bricks) s.brick_min_bytes = std::numeric_limits<std::uint64_t>::max();
     if (o.shade) s.shading.enabled = true;
     if (!o.gradient.empty()) {

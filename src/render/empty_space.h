@@ -108,6 +108,10 @@ public:
     [[nodiscard]] const std::array<std::int64_t, 3>& dims() const { return dims_; }
     /// Cells per macrocell edge (2^shift).
     [[nodiscard]] int edge() const { return 1 << shift_; }
+    /// log2 of edge().
+    [[nodiscard]] int shift() const { return shift_; }
+    /// Lattice nodes per axis.
+    [[nodiscard]] const std::array<std::int64_t, 3>& nodes() const { return nodes_; }
     /// The longest step along an index axis (cells) after which the
     /// computed position of the next sample still lies in a macrocell
     /// touching the last one: a macrocell edge less a cell (a step of a
@@ -202,6 +206,8 @@ public:
     [[nodiscard]] FATHOM_INLINE bool empty(const std::array<std::int64_t, 3>& m) const {
         return empty_[index(m)] != 0;
     }
+    /// Per macrocell in index order: 1 where empty.
+    [[nodiscard]] const std::uint8_t* empty_bytes() const { return empty_.data(); }
     /// The largest D such that the box from m reaching D − 1 macrocells
     /// ahead in octant `o` (bit a set: axis a goes down), clipped to the
     /// grid, holds only macrocells of m's kind (empty or not; capped at
@@ -407,6 +413,21 @@ public:
         const std::int64_t k = estimated_last(b, j, dir, limit);
         if (k != limit) remember(k + dir);  // where the next run starts, long before it is asked
         return {k, false};
+    }
+
+    /// The octant of the forward walk (bit a: the ray goes down axis a),
+    /// its axes (the fractional sample index at node coordinate f on axis
+    /// a is f·A[a] + B[a]) and the samples j ≤ before, j ≥ after that lie
+    /// in empty macrocells: what run(j, +1, limit) computes from, for a
+    /// walk that repeats it elsewhere (simd::trace_packets).
+    void forward_walk(int& octant, double* A, double* B, double& before, double& after) const {
+        octant = octant_fwd_;
+        for (int a = 0; a < 3; ++a) {
+            A[a] = axes_[0][a].A;
+            B[a] = axes_[0][a].B;
+        }
+        before = static_cast<double>(before_);
+        after = static_cast<double>(after_);
     }
 
     /// As run(), but an empty run goes on through the boxes of empty

@@ -110,6 +110,10 @@ bool Renderer::bricked() const {
     return !impl_->bricks.empty();
 }
 
+bool Renderer::packets() const {
+    return impl_->packets;
+}
+
 int Renderer::macrocell_cells() const {
     return impl_->empty_space.any() ? impl_->empty_space.edge() : 0;
 }
@@ -222,6 +226,12 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch.bricks_y = bricks.bricks_y();
         batch.bricks_z = bricks.bricks_z();
     }
+    // Ray packets repeat integrate_point_sampled's SIMD path with skipping
+    // (front to back, unshaded, no depth outputs, no jitter).
+    const auto& mc = empty_space.dims();
+    packets = s.packets && batch.data != nullptr && batch.rule != simd::PointRule::none &&
+              batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
+              !s.depth_outputs && !s.jitter && skipper() != nullptr && mc[0] * mc[1] * mc[2] >= 4;
     // (Bricked, the tracer's scalar sampler holds no samples: nothing on
     // that path reads it.)
     tracer = visit_dtype(type, [&]<class T>(T*) {
@@ -308,28 +318,38 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
     std::atomic<int> next{0}, done{0};
     std::exception_ptr failure;
     std::mutex failure_mutex;
+    auto write = [&](int x, int y, const RayResult& r) {
+        float* p = img.pixel(x, y);
+        for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
+        p[3] = static_cast<float>(r.alpha);
+        if (s.depth_outputs) {
+            const std::size_t k =
+                static_cast<std::size_t>(y) * static_cast<std::size_t>(s.width) + static_cast<std::size_t>(x);
+            img.depth[k] = static_cast<float>(r.depth);
+            img.first_hit[k] = static_cast<float>(r.first_hit);
+        }
+    };
     auto worker = [&] {
+        TilePackets packets;
         try {
             for (int t = next++; t < tiles; t = next++) {
                 const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
                 const int w = std::min(kTile, s.width - x0), h = std::min(kTile, s.height - y0);
-                for (int q = 0; q < w * h; ++q) {
-                    const int x = x0 + (by_columns ? q / h : q % w), y = y0 + (by_columns ? q % h : q / w);
-                    const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
-                    double lo = 0, hi = 0;
-                    bounds.at(x, y, lo, hi);
-                    const RayResult r = empty_is_background && !(lo <= hi)
-                                            ? RayResult{impl_->bg, 0.0}
-                                            : impl_->trace(rays(x, y), offset, lo, hi);
-                    float* p = img.pixel(x, y);
-                    for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(r.radiance[c]);
-                    p[3] = static_cast<float>(r.alpha);
-                    if (s.depth_outputs) {
-                        const std::size_t k =
-                            static_cast<std::size_t>(y) * static_cast<std::size_t>(s.width) +
-                            static_cast<std::size_t>(x);
-                        img.depth[k] = static_cast<float>(r.depth);
-                        img.first_hit[k] = static_cast<float>(r.first_hit);
+                auto pixel = [&](int q) {
+                    return std::array<int, 2>{x0 + (by_columns ? q / h : q % w),
+                                              y0 + (by_columns ? q % h : q / w)};
+                };
+                if (impl_->packets) {
+                    impl_->trace_packets(packets, w * h, pixel, rays, bounds, empty_is_background, write);
+                } else {
+                    for (int q = 0; q < w * h; ++q) {
+                        const auto [x, y] = pixel(q);
+                        const double offset = s.jitter ? jitter_offset(x, y, s.jitter_seed) : -1.0;
+                        double lo = 0, hi = 0;
+                        bounds.at(x, y, lo, hi);
+                        write(x, y,
+                              empty_is_background && !(lo <= hi) ? RayResult{impl_->bg, 0.0}
+                                                                 : impl_->trace(rays(x, y), offset, lo, hi));
                     }
                 }
                 const int d = ++done;

@@ -21,6 +21,14 @@ namespace fathom {
 
 using Tracer = std::function<RayResult(const RaySpan&)>;
 
+/// A render thread's buffers for the ray packets of its tiles.
+struct TilePackets {
+    std::vector<simd::PacketRay> rays;
+    std::vector<simd::PacketResult> results;
+    std::vector<std::array<int, 2>> pixels;
+    std::vector<std::array<double, 2>> bounds;
+};
+
 struct Renderer::Impl {
     RenderSettings s;
     std::array<std::int64_t, 3> dims{0, 0, 0};  // the lattice rays cross
@@ -40,6 +48,9 @@ struct Renderer::Impl {
     ShadeSetup shade;
     Volume gradients;  // precomputed node gradients (GradientSource::precomputed)
     Tracer tracer;
+    /// The frame's rays go through simd::trace_packets (RenderSettings::packets):
+    /// where the tracer is the unshaded point-sampled SIMD walk it repeats.
+    bool packets = false;
 
     /// Renderer(volume, tf, settings); `own`: volume is `owned`, which may
     /// go into bricks.
@@ -97,6 +108,81 @@ struct Renderer::Impl {
         span.t_near = t0;
         span.t_far = t1;
         return true;
+    }
+
+    /// The `count` rays of one tile (pixel(q), q < count) through
+    /// simd::trace_packets where they all travel in one octant, else one by
+    /// one; write(x, y, result) takes each pixel's result.
+    template <class Pixel, class Rays, class Write>
+    void trace_packets(TilePackets& tp, int count, Pixel&& pixel, const Rays& rays, const PixelBounds& bounds,
+                       bool empty_is_background, Write&& write) const {
+        tp.rays.clear();
+        tp.pixels.clear();
+        tp.bounds.clear();
+        const EmptySpace& es = *skipper();
+        int octant = -1;
+        bool mixed = false;
+        for (int q = 0; q < count; ++q) {
+            const auto [x, y] = pixel(q);
+            double lo = 0, hi = 0;
+            bounds.at(x, y, lo, hi);
+            if (!(lo <= hi)) {
+                write(x, y, empty_is_background ? RayResult{bg, 0.0} : trace(rays(x, y), -1.0, lo, hi));
+                continue;
+            }
+            RaySpan span;
+            if (!span_of(rays(x, y), span)) {
+                write(x, y, RayResult{bg, 0.0});
+                continue;
+            }
+            span.occupied_lo = lo;
+            span.occupied_hi = hi;
+            // integrate_point_sampled's grid and walk
+            const std::int64_t n = segment_count(span.length(), h);
+            simd::PacketRay r{};
+            r.delta = span.length() / static_cast<double>(n);
+            r.offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
+            r.t_near = span.t_near;
+            r.n = static_cast<double>(n);
+            for (int a = 0; a < 3; ++a) {
+                r.p0[a] = span.p0[a];
+                r.dp[a] = span.dp[a];
+            }
+            int o = 0;
+            RunFinder(es, SampleGrid{&span, r.delta, r.offset, 1})
+                .forward_walk(o, r.A, r.B, r.before, r.after);
+            if (octant < 0) octant = o;
+            mixed = mixed || o != octant;
+            tp.rays.push_back(r);
+            tp.pixels.push_back({x, y});
+            tp.bounds.push_back({lo, hi});
+        }
+        if (tp.rays.empty()) return;
+        if (mixed) {  // a tile across an axis's turning: one by one
+            for (std::size_t k = 0; k < tp.rays.size(); ++k) {
+                const auto [x, y] = tp.pixels[k];
+                write(x, y, trace(rays(x, y), -1.0, tp.bounds[k][0], tp.bounds[k][1]));
+            }
+            return;
+        }
+        simd::PacketWalk w;
+        w.empty = es.empty_bytes();
+        w.ahead = es.ahead(octant);
+        w.cells = es.dims()[0] * es.dims()[1] * es.dims()[2];
+        for (int a = 0; a < 3; ++a) {
+            w.dims[a] = static_cast<double>(es.dims()[a]);
+            w.nodes[a] = static_cast<double>(es.nodes()[a]);
+        }
+        w.shift = es.shift();
+        w.octant = octant;
+        tp.results.resize(tp.rays.size());
+        simd::trace_packets(batch, w, tp.rays.data(), tp.rays.size(), s.termination, bg.data(),
+                            tp.results.data());
+        for (std::size_t k = 0; k < tp.rays.size(); ++k) {
+            const simd::PacketResult& pr = tp.results[k];
+            write(tp.pixels[k][0], tp.pixels[k][1],
+                  RayResult{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha});
+        }
     }
 
     /// The frame's PixelBounds for `camera` where its tracer walks the

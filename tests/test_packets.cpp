@@ -1,0 +1,250 @@
+// Ray packets (simd::trace_packets, RenderSettings::packets): the
+// point-sampled quadratures traced one ray per SIMD lane must give the very
+// bits of tracing the rays one by one, for every sample type, rule, model,
+// sample point, background, termination threshold, layout and SIMD target,
+// and where the exponential's range runs out. The renderer takes them only
+// where they repeat that path.
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "fathom/io.h"
+#include "fathom/render.h"
+
+#include "integrate/simd_classify.h"
+#include "synthetic.h"
+#include "test_util.h"
+
+using namespace fathom;
+
+namespace {
+
+bool same_pixels(const Image& a, const Image& b) {
+    return a.width == b.width && a.height == b.height && a.rgba.size() == b.rgba.size() &&
+           std::memcmp(a.rgba.data(), b.rgba.data(), sizeof(float) * a.rgba.size()) == 0;
+}
+
+// Shells of a few voxels around two centres, in a box whose cell counts
+// are not multiples of the macrocell edge, scaled to [lo, hi] and stored as
+// `type`: rays cross empty space, thin walls and the zero range in turn.
+Volume shells(DType type, double lo, double hi, std::array<std::int64_t, 3> dims = {41, 35, 38}) {
+    Volume v(dims, type);
+    for (std::int64_t k = 0; k < dims[2]; ++k)
+        for (std::int64_t j = 0; j < dims[1]; ++j)
+            for (std::int64_t i = 0; i < dims[0]; ++i) {
+                auto shell = [&](double cx, double cy, double cz, double r) {
+                    const double d =
+                        std::sqrt((i - cx) * (i - cx) + (j - cy) * (j - cy) + (k - cz) * (k - cz));
+                    return std::max(0.0, 1.0 - std::abs(d - r) / 2.5);
+                };
+                const double f = std::min(1.0, shell(15, 16, 17, 10) + shell(27, 19, 22, 7));
+                double x = lo + (hi - lo) * f;
+                if (type != DType::f32 && type != DType::f64) x = std::round(x);
+                v.set_value(i, j, k, x);
+            }
+    v.set_spacing({1.0, 1.2, 0.9});
+    return v;
+}
+
+// σ exactly 0 below a third of the range, a ramp, a jump; colors vary.
+TransferFunction shell_tf(double lo, double hi, bool associated = false, double scale = 1.0) {
+    auto at = [&](double f) { return lo + (hi - lo) * f; };
+    TransferFunction tf;
+    tf.alpha_kind = TransferFunction::Alpha::extinction;
+    tf.alpha_points = {{at(0.0), 0.0},         {at(0.33), 0.0},        {at(0.5), 0.6 * scale},
+                       {at(0.7), 0.6 * scale}, {at(0.7), 2.0 * scale}, {at(1.0), 2.5 * scale}};
+    tf.associated = associated;
+    if (associated)
+        tf.color_points = {
+            {at(0.0), {0, 0, 0}}, {at(0.2), {0, 0, 0}}, {at(0.6), {0.7, 0.3, 0.1}}, {at(1.0), {1, 1, 0.4}}};
+    else
+        tf.color_points = {{at(0.0), {0.2, 0.4, 0.9}}, {at(0.5), {0.9, 0.5, 0.2}}, {at(1.0), {1, 1, 1}}};
+    return tf;
+}
+
+RenderSettings packet_settings(IntegratorKind k, Model m) {
+    RenderSettings s;
+    s.width = 37;
+    s.height = 29;
+    s.integrator = k;
+    s.model = m;
+    s.step = 0.6;
+    s.threads = 2;
+    return s;
+}
+
+// Renders with packets on and off for each camera; the number of images
+// that differ in any bit. Fails the test if the renderer does not take
+// packets where asked.
+int compare(const Volume& v, const TransferFunction& tf, RenderSettings s, const std::vector<Camera>& cams) {
+    s.packets = false;
+    const Renderer one_by_one(v, tf, s);
+    s.packets = true;
+    const Renderer packets(v, tf, s);
+    EXPECT_FALSE(one_by_one.packets());
+    EXPECT_TRUE(packets.packets());
+    int bad = 0;
+    for (const Camera& cam : cams)
+        if (!same_pixels(packets.render(cam), one_by_one.render(cam))) ++bad;
+    return bad;
+}
+
+struct Range {
+    DType type;
+    double lo, hi;
+};
+constexpr Range kTypes[] = {{DType::u8, 0, 250},       {DType::i8, -120, 120}, {DType::u16, 100, 60000},
+                            {DType::i16, -2000, 3000}, {DType::u32, 0, 1e6},   {DType::i32, -5e5, 5e5},
+                            {DType::f32, -1.5, 2.5},   {DType::f64, 0, 1}};
+
+}  // namespace
+
+TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
+    const Volume v = shells(DType::u8, 0, 250);
+    const TransferFunction tf = shell_tf(0, 250);
+    auto takes = [&](auto&& change) {
+        RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
+        change(s);
+        return Renderer(v, tf, s).packets();
+    };
+    EXPECT_TRUE(takes([](RenderSettings&) {}));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::riemann; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.model = Model::absorption; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.sample_point = SamplePoint::mid; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.packets = false; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.order = Order::back_to_front; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::preintegrated; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::reference; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.shading.enabled = true; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.jitter = true; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.depth_outputs = true; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.skip_empty = false; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.simd = false; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) { s.model = Model::mip; }));
+}
+
+TEST(Packets, ImagesAreBitIdenticalToTracingRaysOneByOne) {
+    int compared = 0;
+    for (const Range& r : kTypes) {
+        const Volume v = shells(r.type, r.lo, r.hi);
+        const auto cams = test::comparison_cameras(v);
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+            for (auto m : {Model::emission_absorption, Model::absorption, Model::emission})
+                for (bool associated : {false, true}) {
+                    RenderSettings s = packet_settings(k, m);
+                    s.sample_point = associated ? SamplePoint::mid : SamplePoint::near;
+                    EXPECT_EQ(compare(v, shell_tf(r.lo, r.hi, associated), s, cams), 0)
+                        << dtype_name(r.type) << " " << to_string(k) << " " << to_string(m)
+                        << (associated ? " associated, midpoints" : "");
+                    compared += static_cast<int>(cams.size());
+                }
+    }
+    EXPECT_EQ(compared, 8 * 2 * 3 * 2 * 4);
+}
+
+// Early termination at several thresholds (none, the default, a high one
+// that stops most rays in their first wall), backgrounds with −0, one
+// thread and two, a step that puts several samples in a cell and one that
+// crosses a macrocell in two.
+TEST(Packets, TerminationBackgroundsThreadsAndStepsAreBitIdentical) {
+    const Volume v = shells(DType::u16, 100, 60000);
+    const auto cams = test::comparison_cameras(v);
+    const TransferFunction tf = shell_tf(100, 60000, false, 3.0);
+    for (double termination : {0.0, 1e-3, 0.4})
+        for (const Rgb& bg : {Rgb{0, 0, 0}, Rgb{0.2, -0.0, 0.7}})
+            for (int threads : {1, 2})
+                for (double step : {0.23, 1.7}) {
+                    RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
+                    s.termination = termination;
+                    s.background = bg;
+                    s.threads = threads;
+                    s.step = step;
+                    EXPECT_EQ(compare(v, tf, s, cams), 0)
+                        << "termination " << termination << " background " << bg[1] << " threads " << threads
+                        << " step " << step;
+                }
+}
+
+// Every SIMD target's packets against its own ray-by-ray path: with fused
+// multiply–adds the targets differ from each other, never from themselves.
+TEST(Packets, EveryTargetIsBitIdenticalToItsRayByRayPath) {
+    const auto targets = simd::available_targets();
+    ASSERT_FALSE(targets.empty());
+    int compared = 0;
+    for (const Range& r : {kTypes[1], kTypes[3], kTypes[6]}) {
+        const Volume v = shells(r.type, r.lo, r.hi);
+        const auto cams = test::comparison_cameras(v);
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+            for (auto t : targets) {
+                simd::force_target(t);
+                EXPECT_EQ(
+                    compare(v, shell_tf(r.lo, r.hi), packet_settings(k, Model::emission_absorption), cams), 0)
+                    << simd::active_target() << " " << dtype_name(r.type) << " " << to_string(k);
+                ++compared;
+            }
+        simd::force_target(0);
+    }
+    EXPECT_EQ(compared, 3 * 2 * static_cast<int>(targets.size()));
+}
+
+// Optical depths σδ outside the vector exponential's range take the scalar
+// rule lane by lane (as ApplyRule does), and NaN nodes are never skipped:
+// the same bits, NaN payloads included.
+TEST(Packets, ExtinctionBeyondTheExponentialsRangeAndNanNodesAreBitIdentical) {
+    const Volume v = shells(DType::f32, -1.5, 2.5);
+    const auto cams = test::comparison_cameras(v);
+    for (double scale : {1e3, 1e300}) {
+        EXPECT_EQ(compare(v, shell_tf(-1.5, 2.5, false, scale),
+                          packet_settings(IntegratorKind::alpha, Model::emission_absorption), cams),
+                  0)
+            << "σ scaled by " << scale;
+        EXPECT_EQ(compare(v, shell_tf(-1.5, 2.5, false, scale),
+                          packet_settings(IntegratorKind::riemann, Model::absorption), cams),
+                  0)
+            << "σ scaled by " << scale;
+    }
+    Volume nan = v;
+    nan.set_value(20, 17, 19, std::numeric_limits<double>::quiet_NaN());
+    nan.set_value(3, 30, 5, std::numeric_limits<double>::quiet_NaN());
+    EXPECT_EQ(compare(nan, shell_tf(-1.5, 2.5),
+                      packet_settings(IntegratorKind::alpha, Model::emission_absorption), cams),
+              0);
+}
+
+// A renderer that takes its volume over samples bricks: packets read them
+// through the same gathers (64 cells along x and y: two bricks each, a
+// quarter more bytes at most).
+TEST(Packets, BrickedVolumesAreBitIdentical) {
+    for (const Range& r : {kTypes[0], kTypes[3]}) {
+        const Volume v = shells(r.type, r.lo, r.hi, {65, 65, 33});
+        const auto cams = test::comparison_cameras(v);
+        RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
+        s.brick_min_bytes = 0;
+        s.packets = false;
+        const Renderer one_by_one(Volume(v), shell_tf(r.lo, r.hi), s);
+        s.packets = true;
+        const Renderer packets(Volume(v), shell_tf(r.lo, r.hi), s);
+        ASSERT_TRUE(packets.bricked());
+        ASSERT_TRUE(packets.packets());
+        for (const Camera& cam : cams)
+            EXPECT_TRUE(same_pixels(packets.render(cam), one_by_one.render(cam))) << dtype_name(r.type);
+    }
+}
+
+// The bundled chest CT under the bone and soft-tissue presets, the frames
+// the benchmarks time, at a small size.
+TEST(Packets, ChestCtFramesAreBitIdentical) {
+    const Volume v = read_nrrd(test::source_dir() / "data" / "lidc2.nrrd");
+    const Bounds b = volume_bounds(v);
+    const std::vector<Camera> cams{Camera::orbit(90, 10, 2.6, b.center, b.radius),
+                                   Camera::orbit(30, 20, 2.4, b.center, b.radius)};
+    for (const char* preset : {"ct-bone", "ct-soft-tissue"}) {
+        RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
+        s.width = s.height = 96;
+        s.step = 0.5;
+        EXPECT_EQ(compare(v, TransferFunction::preset(preset, v.value_range()), s, cams), 0) << preset;
+    }
+}
