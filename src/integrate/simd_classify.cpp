@@ -712,6 +712,8 @@ HWY_INLINE V GatherBytes(D d, const std::uint8_t* bytes, std::int64_t size, V i)
 /// the other's arithmetic, and each branch serves both.
 constexpr std::size_t kPacketVectors = 2;
 constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a vector at most
+/// The runs a lane's walk may find ahead of its samples.
+constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
 
 /// The lanes of a packet: one ray each (PacketRay's fields, lane by lane),
@@ -719,10 +721,12 @@ constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  
 struct PacketLanes {
     static constexpr std::size_t L = kPacketLanesMax;
     HWY_ALIGN double p0[3][L], dp[3][L], tn[L], dl[L], off[L], n[L], A[3][L], B[3][L], before[L], after[L];
-    HWY_ALIGN double i[L];                        // the next sample
-    HWY_ALIGN double run_end[L];                  // the last sample of the run being evaluated (< i: none)
-    HWY_ALIGN double next_start[L], next_end[L];  // the next non-empty run (start > end: none yet)
-    HWY_ALIGN double w[L];                        // where the walk goes on
+    HWY_ALIGN double i[L];        // the next sample
+    HWY_ALIGN double run_end[L];  // the last sample of the run being evaluated (< i: none)
+    // the next non-empty runs, found by the walk ahead of the samples
+    // (start > end: none), in order: [0] before [1]
+    HWY_ALIGN double next_start[kPacketQueue][L], next_end[kPacketQueue][L];
+    HWY_ALIGN double w[L];  // where the walk goes on
     HWY_ALIGN double T[L], C[3][L];
     HWY_ALIGN double live[L];  // 1: the lane holds a ray
     std::int64_t ray[L];
@@ -744,8 +748,12 @@ struct PacketLanes {
         n[l] = r != nullptr ? r->n : 0.0;
         before[l] = r != nullptr ? r->before : -1.0;
         after[l] = r != nullptr ? r->after : 2.0;
-        i[l] = w[l] = next_start[l] = 1.0;
-        run_end[l] = next_end[l] = 0.0;
+        i[l] = w[l] = 1.0;
+        run_end[l] = 0.0;
+        for (std::size_t q = 0; q < kPacketQueue; ++q) {
+            next_start[q][l] = 1.0;
+            next_end[q][l] = 0.0;
+        }
         T[l] = 1.0;
     }
 };
@@ -821,8 +829,15 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
     }
     const M found = hn::AndNot(empty, need);
     hn::Store(hn::IfThenElse(need, hn::Add(last, hn::Set(d, 1.0)), j), d, L.w + o);
-    hn::Store(hn::IfThenElse(found, j, hn::Load(d, L.next_start + o)), d, L.next_start + o);
-    hn::Store(hn::IfThenElse(found, last, hn::Load(d, L.next_end + o)), d, L.next_end + o);
+    // into the first free place of the lane's queue
+    M free = found;
+    for (std::size_t q = 0; q < kPacketQueue; ++q) {
+        const V qs = hn::Load(d, L.next_start[q] + o), qe = hn::Load(d, L.next_end[q] + o);
+        const M put = hn::AndNot(hn::Le(qs, qe), free);
+        hn::Store(hn::IfThenElse(put, j, qs), d, L.next_start[q] + o);
+        hn::Store(hn::IfThenElse(put, last, qe), d, L.next_end[q] + o);
+        free = hn::AndNot(put, free);
+    }
 }
 
 /// The segments of one sample per lane (ClassifyBatch's operations: the
@@ -920,18 +935,28 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             for (std::size_t h = 0; h < K; ++h) {
                 const std::size_t o = h * N;
                 live[h] = hn::Eq(hn::Load(d, L.live + o), one);
-                const V i = hn::Load(d, L.i + o), ns = hn::Load(d, L.next_start + o),
-                        ne = hn::Load(d, L.next_end + o), re = hn::Load(d, L.run_end + o);
+                const V i = hn::Load(d, L.i + o), re = hn::Load(d, L.run_end + o);
+                V qs[kPacketQueue], qe[kPacketQueue];
+                for (std::size_t q = 0; q < kPacketQueue; ++q) {
+                    qs[q] = hn::Load(d, L.next_start[q] + o);
+                    qe[q] = hn::Load(d, L.next_end[q] + o);
+                }
                 const M ended = hn::And(live[h], hn::Gt(i, re));
-                const M has_next = hn::Le(ns, ne);
+                const M has_next = hn::Le(qs[0], qe[0]);
                 const M take = hn::And(ended, has_next);
-                hn::Store(hn::IfThenElse(take, ns, i), d, L.i + o);
-                hn::Store(hn::IfThenElse(take, ne, re), d, L.run_end + o);
-                const V ns2 = hn::IfThenElse(take, hn::Add(ne, one), ns);  // none left
-                hn::Store(ns2, d, L.next_start + o);
+                hn::Store(hn::IfThenElse(take, qs[0], i), d, L.i + o);
+                hn::Store(hn::IfThenElse(take, qe[0], re), d, L.run_end + o);
+                for (std::size_t q = 0; q < kPacketQueue; ++q) {  // the queue moves up
+                    const bool last_place = q + 1 == kPacketQueue;
+                    qs[q] = hn::IfThenElse(take, last_place ? one : qs[q + 1], qs[q]);
+                    qe[q] = hn::IfThenElse(take, last_place ? hn::Zero(d) : qe[q + 1], qe[q]);
+                    hn::Store(qs[q], d, L.next_start[q] + o);
+                    hn::Store(qe[q], d, L.next_end[q] + o);
+                }
                 const M walking = hn::And(live[h], hn::Le(hn::Load(d, L.w + o), hn::Load(d, L.n + o)));
                 urgent = urgent || !hn::AllFalse(d, hn::AndNot(has_next, hn::And(ended, walking)));
-                mask[h] = hn::AndNot(hn::Le(ns2, ne), walking);  // every lane that has no next run
+                // every lane whose queue has room
+                mask[h] = hn::AndNot(hn::Le(qs[kPacketQueue - 1], qe[kPacketQueue - 1]), walking);
             }
             if (!urgent) break;
             for (std::size_t h = 0; h < K; ++h)

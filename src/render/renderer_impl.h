@@ -26,7 +26,9 @@ struct TilePackets {
     std::vector<simd::PacketRay> rays;
     std::vector<simd::PacketResult> results;
     std::vector<std::array<int, 2>> pixels;
-    std::vector<std::array<double, 2>> bounds;
+    std::vector<int> octants;
+    std::vector<std::size_t> order;  // by octant, where they differ
+    std::vector<simd::PacketRay> grouped;
 };
 
 struct Renderer::Impl {
@@ -111,16 +113,16 @@ struct Renderer::Impl {
     }
 
     /// The `count` rays of one tile (pixel(q), q < count) through
-    /// simd::trace_packets where they all travel in one octant, else one by
-    /// one; write(x, y, result) takes each pixel's result.
+    /// simd::trace_packets, a call per octant the rays travel in (a tile
+    /// across an axis's turning has several); write(x, y, result) takes
+    /// each pixel's result.
     template <class Pixel, class Rays, class Write>
     void trace_packets(TilePackets& tp, int count, Pixel&& pixel, const Rays& rays, const PixelBounds& bounds,
                        bool empty_is_background, Write&& write) const {
         tp.rays.clear();
         tp.pixels.clear();
-        tp.bounds.clear();
+        tp.octants.clear();
         const EmptySpace& es = *skipper();
-        int octant = -1;
         bool mixed = false;
         for (int q = 0; q < count; ++q) {
             const auto [x, y] = pixel(q);
@@ -151,37 +153,54 @@ struct Renderer::Impl {
             int o = 0;
             RunFinder(es, SampleGrid{&span, r.delta, r.offset, 1})
                 .forward_walk(o, r.A, r.B, r.before, r.after);
-            if (octant < 0) octant = o;
-            mixed = mixed || o != octant;
+            mixed = mixed || (!tp.octants.empty() && o != tp.octants.front());
             tp.rays.push_back(r);
             tp.pixels.push_back({x, y});
-            tp.bounds.push_back({lo, hi});
+            tp.octants.push_back(o);
         }
         if (tp.rays.empty()) return;
-        if (mixed) {  // a tile across an axis's turning: one by one
-            for (std::size_t k = 0; k < tp.rays.size(); ++k) {
-                const auto [x, y] = tp.pixels[k];
-                write(x, y, trace(rays(x, y), -1.0, tp.bounds[k][0], tp.bounds[k][1]));
-            }
-            return;
-        }
         simd::PacketWalk w;
         w.empty = es.empty_bytes();
-        w.ahead = es.ahead(octant);
         w.cells = es.dims()[0] * es.dims()[1] * es.dims()[2];
         for (int a = 0; a < 3; ++a) {
             w.dims[a] = static_cast<double>(es.dims()[a]);
             w.nodes[a] = static_cast<double>(es.nodes()[a]);
         }
         w.shift = es.shift();
-        w.octant = octant;
+        auto trace_group = [&](const simd::PacketRay* group, std::size_t count, int octant,
+                               simd::PacketResult* out) {
+            w.octant = octant;
+            w.ahead = es.ahead(octant);
+            simd::trace_packets(batch, w, group, count, s.termination, bg.data(), out);
+        };
         tp.results.resize(tp.rays.size());
-        simd::trace_packets(batch, w, tp.rays.data(), tp.rays.size(), s.termination, bg.data(),
-                            tp.results.data());
-        for (std::size_t k = 0; k < tp.rays.size(); ++k) {
+        const std::size_t count_traced = tp.rays.size();
+        if (!mixed) {
+            trace_group(tp.rays.data(), count_traced, tp.octants.front(), tp.results.data());
+            for (std::size_t k = 0; k < count_traced; ++k) {
+                const simd::PacketResult& pr = tp.results[k];
+                write(tp.pixels[k][0], tp.pixels[k][1],
+                      RayResult{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha});
+            }
+            return;
+        }
+        // a tile across an axis's turning: the rays of each octant together
+        tp.order.resize(count_traced);
+        for (std::size_t k = 0; k < count_traced; ++k) tp.order[k] = k;
+        std::stable_sort(tp.order.begin(), tp.order.end(),
+                         [&](std::size_t a, std::size_t b) { return tp.octants[a] < tp.octants[b]; });
+        tp.grouped.resize(count_traced);
+        for (std::size_t k = 0; k < count_traced; ++k) tp.grouped[k] = tp.rays[tp.order[k]];
+        for (std::size_t k0 = 0; k0 < count_traced;) {
+            std::size_t k1 = k0;
+            while (k1 < count_traced && tp.octants[tp.order[k1]] == tp.octants[tp.order[k0]]) ++k1;
+            trace_group(tp.grouped.data() + k0, k1 - k0, tp.octants[tp.order[k0]], tp.results.data() + k0);
+            k0 = k1;
+        }
+        for (std::size_t k = 0; k < count_traced; ++k) {
             const simd::PacketResult& pr = tp.results[k];
-            write(tp.pixels[k][0], tp.pixels[k][1],
-                  RayResult{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha});
+            const auto [x, y] = tp.pixels[tp.order[k]];
+            write(x, y, RayResult{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha});
         }
     }
 
