@@ -248,3 +248,31 @@ TEST(Packets, ChestCtFramesAreBitIdentical) {
         EXPECT_EQ(compare(v, TransferFunction::preset(preset, v.value_range()), s, cams), 0) << preset;
     }
 }
+
+// The rays' spans and walks come a vector at a time
+// (simd::prepare_packet_rays) without cutting, one at a time with a
+// cropping box or clipping planes: both the same bits as tracing the rays
+// one by one, for cameras inside the volume, along its axes (direction
+// components exactly 0 for the middle pixel row and column) and
+// orthographic ones that miss it in part.
+TEST(Packets, RaySetUpWithAndWithoutCuttingIsBitIdentical) {
+    const Volume v = shells(DType::i16, -2000, 3000);
+    const Bounds b = volume_bounds(v);
+    std::vector<Camera> cams = test::comparison_cameras(v);
+    cams.push_back(Camera::orbit(20, 15, 0.3, b.center, b.radius));  // inside
+    cams.push_back(Camera::orbit(180, 0, 0.9, b.center, b.radius));  // inside, along an axis
+    Camera ortho = Camera::orbit(90, 0, 3, b.center, b.radius);
+    ortho.projection = Projection::orthographic;
+    ortho.height = 3 * b.radius;  // wider than the volume: rays that miss it
+    cams.push_back(ortho);
+    RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
+    s.width = 33;  // odd: a middle column and row of pixels
+    s.height = 31;
+    EXPECT_EQ(compare(v, shell_tf(-2000, 3000), s, cams), 0) << "uncut";
+    RenderSettings crop = s;
+    crop.crop = WorldBox{b.center - Vec3{9, 8, 20}, b.center + Vec3{12, 30, 7}};
+    EXPECT_EQ(compare(v, shell_tf(-2000, 3000), crop, cams), 0) << "cropped";
+    RenderSettings clip = s;
+    clip.clip_planes = {{b.center, {0.3, -1, 0.2}}, {b.center + Vec3{5, 0, 0}, {-1, 0, 0}}};
+    EXPECT_EQ(compare(v, shell_tf(-2000, 3000), clip, cams), 0) << "clipped";
+}

@@ -1006,6 +1006,113 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     }
 }
 
+void PreparePacketRays(const PacketFrame& f, const PacketRaysIn& in, PacketRay* out, int* octant,
+                       std::uint8_t* meets) {
+    const D d;
+    const std::size_t N = hn::Lanes(d);
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0), inf = hn::Set(d, INFINITY);
+    const V h = hn::Set(d, f.h), offset = hn::Set(d, f.offset);
+    const V limit = hn::Set(d, 0x1p52), never = hn::Set(d, 0x1p60);
+    for (std::size_t b = 0; b < in.count; b += N) {
+        // whole vectors: the lanes past the last ray repeat it
+        HWY_ALIGN double lane[8][8];
+        for (std::size_t l = 0; l < N; ++l) {
+            const std::size_t k = std::min(b + l, in.count - 1);
+            for (int a = 0; a < 3; ++a) {
+                lane[a][l] = in.origin[a][k];
+                lane[3 + a][l] = in.dir[a][k];
+            }
+            lane[6][l] = in.lo[k];
+            lane[7][l] = in.hi[k];
+        }
+        // Renderer::Impl::span_of: p0 = M·(origin − the lattice's origin), dp = M·dir
+        V v[3], dir[3], p0[3], dp[3];
+        for (int a = 0; a < 3; ++a) {
+            v[a] = hn::Sub(hn::Load(d, lane[a]), hn::Set(d, f.origin[a]));
+            dir[a] = hn::Load(d, lane[3 + a]);
+        }
+        for (int r = 0; r < 3; ++r) {
+            auto row = [&](const V* x) {  // Mat3 · Vec3, in its order
+                return hn::Add(hn::Add(hn::Mul(hn::Set(d, f.world_to_index[r][0]), x[0]),
+                                       hn::Mul(hn::Set(d, f.world_to_index[r][1]), x[1])),
+                               hn::Mul(hn::Set(d, f.world_to_index[r][2]), x[2]));
+            };
+            p0[r] = row(v);
+            dp[r] = row(dir);
+        }
+        // intersect_box
+        V t0 = zero, t1 = inf;
+        M ok = hn::FirstN(d, N);
+        for (int a = 0; a < 3; ++a) {
+            const V hi = hn::Set(d, f.node_hi[a]);
+            const M flat = hn::Eq(dp[a], zero);
+            ok = hn::AndNot(hn::And(flat, hn::Or(hn::Lt(p0[a], zero), hn::Gt(p0[a], hi))), ok);
+            const V ta = hn::Div(hn::Sub(zero, p0[a]), dp[a]), tb = hn::Div(hn::Sub(hi, p0[a]), dp[a]);
+            const M swap = hn::Gt(ta, tb);
+            const V near = hn::IfThenElse(swap, tb, ta), far = hn::IfThenElse(swap, ta, tb);
+            t0 = hn::IfThenElse(hn::AndNot(flat, hn::Lt(t0, near)), near, t0);  // std::max(t0, ta)
+            t1 = hn::IfThenElse(hn::AndNot(flat, hn::Lt(far, t1)), far, t1);    // std::min(t1, tb)
+        }
+        ok = hn::And(ok, hn::Gt(t1, t0));
+        // segment_count and δ
+        const V length = hn::Sub(t1, t0);
+        const V n = hn::Max(one, hn::Ceil(hn::Div(length, h)));
+        const V delta = hn::Div(length, n);
+        // RunFinder: the forward axes, and the samples before and after the
+        // pixel bounds (first = 1)
+        V A[3], B[3];
+        for (int a = 0; a < 3; ++a) {
+            const V inv = hn::Div(one, hn::Mul(dp[a], delta));
+            const M crosses = hn::IsFinite(inv);
+            A[a] = hn::IfThenElseZero(crosses, inv);
+            B[a] = hn::IfThenElse(
+                crosses,
+                hn::Add(hn::Sub(hn::Div(hn::Sub(hn::Div(hn::Neg(p0[a]), dp[a]), t0), delta), offset), one),
+                inf);
+        }
+        auto index_at = [&](V t) {
+            const V x = hn::Add(hn::Sub(hn::Div(hn::Sub(t, t0), delta), offset), one);
+            return hn::Min(hn::Max(x, hn::Neg(limit)), limit);
+        };
+        const V lo = hn::Load(d, lane[6]), hi = hn::Load(d, lane[7]);
+        const V before =
+            hn::IfThenElse(hn::Gt(lo, hn::Neg(inf)), hn::Sub(hn::Floor(index_at(lo)), one), hn::Neg(never));
+        const V after = hn::IfThenElse(hn::Lt(hi, inf), hn::Add(hn::Ceil(index_at(hi)), one), never);
+        HWY_ALIGN double o[18][8];
+        for (int a = 0; a < 3; ++a) {
+            hn::Store(p0[a], d, o[a]);
+            hn::Store(dp[a], d, o[3 + a]);
+            hn::Store(A[a], d, o[6 + a]);
+            hn::Store(B[a], d, o[9 + a]);
+        }
+        hn::Store(t0, d, o[12]);
+        hn::Store(delta, d, o[13]);
+        hn::Store(n, d, o[14]);
+        hn::Store(hn::IfThenElseZero(ok, one), d, o[15]);
+        hn::Store(before, d, o[16]);
+        hn::Store(after, d, o[17]);
+        for (std::size_t l = 0; l < N && b + l < in.count; ++l) {
+            PacketRay& r = out[b + l];
+            int oct = 0;
+            for (int a = 0; a < 3; ++a) {
+                r.p0[a] = o[a][l];
+                r.dp[a] = o[3 + a][l];
+                r.A[a] = o[6 + a][l];
+                r.B[a] = o[9 + a][l];
+                if (o[3 + a][l] < 0.0) oct |= 1 << a;
+            }
+            r.t_near = o[12][l];
+            r.delta = o[13][l];
+            r.n = o[14][l];
+            r.offset = f.offset;
+            r.before = o[16][l];
+            r.after = o[17][l];
+            octant[b + l] = oct;
+            meets[b + l] = o[15][l] != 0.0 ? 1 : 0;
+        }
+    }
+}
+
 void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* rays, std::size_t count,
                   double termination, const double* bg, PacketResult* out) {
     visit_dtype(src.type,
@@ -1073,6 +1180,7 @@ HWY_EXPORT(ShadeBatchAt);
 HWY_EXPORT(TargetOf);
 HWY_EXPORT(FusedOf);
 HWY_EXPORT(TracePackets);
+HWY_EXPORT(PreparePacketRays);
 
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
     HWY_DYNAMIC_DISPATCH(ClassifyBatch)(src, ray, j0, count, out);
@@ -1086,6 +1194,11 @@ void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t 
 void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
                    double termination, const double* bg, PacketResult* out) {
     HWY_DYNAMIC_DISPATCH(TracePackets)(src, walk, rays, count, termination, bg, out);
+}
+
+void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, PacketRay* out, int* octant,
+                         std::uint8_t* meets) {
+    HWY_DYNAMIC_DISPATCH(PreparePacketRays)(frame, in, out, octant, meets);
 }
 
 void shade_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, std::uint32_t skip,

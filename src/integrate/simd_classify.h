@@ -227,6 +227,34 @@ struct PacketResult {
     double alpha;
 };
 
+/// The frame's lattice for prepare_packet_rays: index = M·(world − origin),
+/// nodes 0 … nodes − 1 per axis, the step h (world units), and the point
+/// samples' place in their segment (`offset`, RenderSettings::sample_point).
+struct PacketFrame {
+    double world_to_index[3][3];
+    double origin[3];
+    double node_hi[3];  // nodes − 1 per axis
+    double h = 0, offset = 0;
+};
+
+/// Camera rays of a tile (world origin and direction, per ray) with their
+/// PixelBounds [lo, hi] (lo ≤ hi), structure of arrays of `count` entries.
+struct PacketRaysIn {
+    const double* origin[3];
+    const double* dir[3];
+    const double* lo;
+    const double* hi;
+    std::size_t count = 0;
+};
+
+/// What Renderer::Impl::span_of (without cropping or clipping planes),
+/// integrate_point_sampled's grid and RunFinder's constructor and
+/// forward_walk compute for each ray, lane by lane with the same operations:
+/// out[k] and octant[k] for each ray k that meets the volume (meets[k] = 1;
+/// 0 where span_of gives none).
+void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, PacketRay* out, int* octant,
+                         std::uint8_t* meets);
+
 /// Traces rays[0..count) (see PacketRay) under src's rule and model with
 /// front-to-back compositing, early termination below `termination` and
 /// background `bg`: out[k] is ray k's result, as composite() would give it.

@@ -23,6 +23,13 @@ using Tracer = std::function<RayResult(const RaySpan&)>;
 
 /// A render thread's buffers for the ray packets of its tiles.
 struct TilePackets {
+    // the camera rays of a tile that has no crop or clipping planes, for
+    // simd::prepare_packet_rays
+    std::vector<double> in[8];  // origin, direction (3 each), bounds lo, hi
+    std::vector<std::array<int, 2>> in_pixels;
+    std::vector<simd::PacketRay> prepared;
+    std::vector<int> prepared_octants;
+    std::vector<std::uint8_t> meets;
     std::vector<simd::PacketRay> rays;
     std::vector<simd::PacketResult> results;
     std::vector<std::array<int, 2>> pixels;
@@ -124,7 +131,58 @@ struct Renderer::Impl {
         tp.octants.clear();
         const EmptySpace& es = *skipper();
         bool mixed = false;
-        for (int q = 0; q < count; ++q) {
+        if (!s.crop && s.clip_planes.empty()) {  // the rays' spans and walks a vector at a time
+            for (auto& v : tp.in) v.clear();
+            tp.in_pixels.clear();
+            for (int q = 0; q < count; ++q) {
+                const auto [x, y] = pixel(q);
+                double lo = 0, hi = 0;
+                bounds.at(x, y, lo, hi);
+                if (!(lo <= hi)) {
+                    write(x, y, empty_is_background ? RayResult{bg, 0.0} : trace(rays(x, y), -1.0, lo, hi));
+                    continue;
+                }
+                const Ray ray = rays(x, y);
+                for (int a = 0; a < 3; ++a) {
+                    tp.in[a].push_back(ray.origin[a]);
+                    tp.in[3 + a].push_back(ray.dir[a]);
+                }
+                tp.in[6].push_back(lo);
+                tp.in[7].push_back(hi);
+                tp.in_pixels.push_back({x, y});
+            }
+            const std::size_t k = tp.in_pixels.size();
+            if (k == 0) return;
+            simd::PacketFrame f;
+            for (int a = 0; a < 3; ++a) {
+                for (int b = 0; b < 3; ++b) f.world_to_index[a][b] = world_to_index.m[a][b];
+                f.origin[a] = origin[a];
+                f.node_hi[a] = static_cast<double>(dims[a] - 1);
+            }
+            f.h = h;
+            f.offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
+            const simd::PacketRaysIn in{{tp.in[0].data(), tp.in[1].data(), tp.in[2].data()},
+                                        {tp.in[3].data(), tp.in[4].data(), tp.in[5].data()},
+                                        tp.in[6].data(),
+                                        tp.in[7].data(),
+                                        k};
+            tp.prepared.resize(k);
+            tp.prepared_octants.resize(k);
+            tp.meets.resize(k);
+            simd::prepare_packet_rays(f, in, tp.prepared.data(), tp.prepared_octants.data(), tp.meets.data());
+            for (std::size_t i = 0; i < k; ++i) {
+                if (tp.meets[i] == 0) {  // span_of: no span
+                    write(tp.in_pixels[i][0], tp.in_pixels[i][1], RayResult{bg, 0.0});
+                    continue;
+                }
+                const int o = tp.prepared_octants[i];
+                mixed = mixed || (!tp.octants.empty() && o != tp.octants.front());
+                tp.rays.push_back(tp.prepared[i]);
+                tp.pixels.push_back(tp.in_pixels[i]);
+                tp.octants.push_back(o);
+            }
+        }
+        for (int q = 0; q < count && !(!s.crop && s.clip_planes.empty()); ++q) {
             const auto [x, y] = pixel(q);
             double lo = 0, hi = 0;
             bounds.at(x, y, lo, hi);
