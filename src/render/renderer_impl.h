@@ -131,7 +131,8 @@ struct Renderer::Impl {
         tp.octants.clear();
         const EmptySpace& es = *skipper();
         bool mixed = false;
-        if (!s.crop && s.clip_planes.empty()) {  // the rays' spans and walks a vector at a time
+        const bool cut = s.crop || !s.clip_planes.empty();
+        if (!cut) {  // the rays' spans and walks a vector at a time
             for (auto& v : tp.in) v.clear();
             tp.in_pixels.clear();
             for (int q = 0; q < count; ++q) {
@@ -182,7 +183,7 @@ struct Renderer::Impl {
                 tp.octants.push_back(o);
             }
         }
-        for (int q = 0; q < count && !(!s.crop && s.clip_planes.empty()); ++q) {
+        for (int q = 0; q < count && cut; ++q) {  // one at a time
             const auto [x, y] = pixel(q);
             double lo = 0, hi = 0;
             bounds.at(x, y, lo, hi);
