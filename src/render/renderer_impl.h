@@ -131,19 +131,28 @@ struct Renderer::Impl {
         tp.octants.clear();
         const EmptySpace& es = *skipper();
         bool mixed = false;
+        auto add = [&](const simd::PacketRay& r, std::array<int, 2> xy, int o) {
+            mixed = mixed || (!tp.octants.empty() && o != tp.octants.front());
+            tp.rays.push_back(r);
+            tp.pixels.push_back(xy);
+            tp.octants.push_back(o);
+        };
+        const double offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
+        // Without cutting, the rays' spans and walks come a vector at a time
+        // after this loop; with a cropping box or clipping planes, one at a time.
         const bool cut = s.crop || !s.clip_planes.empty();
-        if (!cut) {  // the rays' spans and walks a vector at a time
-            for (auto& v : tp.in) v.clear();
-            tp.in_pixels.clear();
-            for (int q = 0; q < count; ++q) {
-                const auto [x, y] = pixel(q);
-                double lo = 0, hi = 0;
-                bounds.at(x, y, lo, hi);
-                if (!(lo <= hi)) {
-                    write(x, y, empty_is_background ? RayResult{bg, 0.0} : trace(rays(x, y), -1.0, lo, hi));
-                    continue;
-                }
-                const Ray ray = rays(x, y);
+        for (auto& v : tp.in) v.clear();
+        tp.in_pixels.clear();
+        for (int q = 0; q < count; ++q) {
+            const auto [x, y] = pixel(q);
+            double lo = 0, hi = 0;
+            bounds.at(x, y, lo, hi);
+            if (!(lo <= hi)) {
+                write(x, y, empty_is_background ? RayResult{bg, 0.0} : trace(rays(x, y), -1.0, lo, hi));
+                continue;
+            }
+            const Ray ray = rays(x, y);
+            if (!cut) {
                 for (int a = 0; a < 3; ++a) {
                     tp.in[a].push_back(ray.origin[a]);
                     tp.in[3 + a].push_back(ray.dir[a]);
@@ -151,9 +160,31 @@ struct Renderer::Impl {
                 tp.in[6].push_back(lo);
                 tp.in[7].push_back(hi);
                 tp.in_pixels.push_back({x, y});
+                continue;
             }
-            const std::size_t k = tp.in_pixels.size();
-            if (k == 0) return;
+            RaySpan span;
+            if (!span_of(ray, span)) {
+                write(x, y, RayResult{bg, 0.0});
+                continue;
+            }
+            span.occupied_lo = lo;
+            span.occupied_hi = hi;
+            // integrate_point_sampled's grid and walk
+            const std::int64_t n = segment_count(span.length(), h);
+            simd::PacketRay r{};
+            r.delta = span.length() / static_cast<double>(n);
+            r.offset = offset;
+            r.t_near = span.t_near;
+            r.n = static_cast<double>(n);
+            for (int a = 0; a < 3; ++a) {
+                r.p0[a] = span.p0[a];
+                r.dp[a] = span.dp[a];
+            }
+            int o = 0;
+            RunFinder(es, SampleGrid{&span, r.delta, offset, 1}).forward_walk(o, r.A, r.B, r.before, r.after);
+            add(r, {x, y}, o);
+        }
+        if (const std::size_t k = tp.in_pixels.size(); k > 0) {
             simd::PacketFrame f;
             for (int a = 0; a < 3; ++a) {
                 for (int b = 0; b < 3; ++b) f.world_to_index[a][b] = world_to_index.m[a][b];
@@ -161,7 +192,7 @@ struct Renderer::Impl {
                 f.node_hi[a] = static_cast<double>(dims[a] - 1);
             }
             f.h = h;
-            f.offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
+            f.offset = offset;
             const simd::PacketRaysIn in{{tp.in[0].data(), tp.in[1].data(), tp.in[2].data()},
                                         {tp.in[3].data(), tp.in[4].data(), tp.in[5].data()},
                                         tp.in[6].data(),
@@ -172,50 +203,11 @@ struct Renderer::Impl {
             tp.meets.resize(k);
             simd::prepare_packet_rays(f, in, tp.prepared.data(), tp.prepared_octants.data(), tp.meets.data());
             for (std::size_t i = 0; i < k; ++i) {
-                if (tp.meets[i] == 0) {  // span_of: no span
+                if (tp.meets[i] != 0)
+                    add(tp.prepared[i], tp.in_pixels[i], tp.prepared_octants[i]);
+                else  // span_of: no span
                     write(tp.in_pixels[i][0], tp.in_pixels[i][1], RayResult{bg, 0.0});
-                    continue;
-                }
-                const int o = tp.prepared_octants[i];
-                mixed = mixed || (!tp.octants.empty() && o != tp.octants.front());
-                tp.rays.push_back(tp.prepared[i]);
-                tp.pixels.push_back(tp.in_pixels[i]);
-                tp.octants.push_back(o);
             }
-        }
-        for (int q = 0; q < count && cut; ++q) {  // one at a time
-            const auto [x, y] = pixel(q);
-            double lo = 0, hi = 0;
-            bounds.at(x, y, lo, hi);
-            if (!(lo <= hi)) {
-                write(x, y, empty_is_background ? RayResult{bg, 0.0} : trace(rays(x, y), -1.0, lo, hi));
-                continue;
-            }
-            RaySpan span;
-            if (!span_of(rays(x, y), span)) {
-                write(x, y, RayResult{bg, 0.0});
-                continue;
-            }
-            span.occupied_lo = lo;
-            span.occupied_hi = hi;
-            // integrate_point_sampled's grid and walk
-            const std::int64_t n = segment_count(span.length(), h);
-            simd::PacketRay r{};
-            r.delta = span.length() / static_cast<double>(n);
-            r.offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
-            r.t_near = span.t_near;
-            r.n = static_cast<double>(n);
-            for (int a = 0; a < 3; ++a) {
-                r.p0[a] = span.p0[a];
-                r.dp[a] = span.dp[a];
-            }
-            int o = 0;
-            RunFinder(es, SampleGrid{&span, r.delta, r.offset, 1})
-                .forward_walk(o, r.A, r.B, r.before, r.after);
-            mixed = mixed || (!tp.octants.empty() && o != tp.octants.front());
-            tp.rays.push_back(r);
-            tp.pixels.push_back({x, y});
-            tp.octants.push_back(o);
         }
         if (tp.rays.empty()) return;
         simd::PacketWalk w;
