@@ -778,8 +778,8 @@ HWY_INLINE void LaneMacrocells(D d, const PacketWalk& w, const V* p, V* m) {
 }
 
 /// RunFinder::run(j, +1, n) for the lanes o … o + N − 1 in `need`, from
-/// j = L.w: the walk moves past the run, and a non-empty one becomes the
-/// lane's next run.
+/// j = L.w: the walk moves past the run, and a non-empty one joins the
+/// lane's queue.
 HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t o, M need) {
     const V j = hn::Load(d, L.w + o), lim = hn::Load(d, L.n + o);
     const V before = hn::Load(d, L.before + o), after = hn::Load(d, L.after + o);
