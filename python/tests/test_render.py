@@ -25,6 +25,7 @@ from conftest import ROOT, SHARED_DATA, blob, cli_render, read_pfm
      ["--background", "0.1,0.2,0.3", "--termination", 0, "--step-unit", "world", "--step", 0.7]),
     ({"jitter": True, "jitter_seed": 7, "integrator": "alpha", "no_skip_empty": True, "no_simd": True},
      ["--jitter", "--jitter-seed", 7, "--integrator", "alpha", "--no-skip-empty", "--no-simd"]),
+    ({"integrator": "alpha", "no_packets": True}, ["--integrator", "alpha", "--no-packets"]),
 ])
 def test_render_scene_gives_the_cli_pixels(cli, blob_scene, tmp_path, overrides, flags):
     img = fathom.render_scene(blob_scene, **overrides)
@@ -33,6 +34,14 @@ def test_render_scene_gives_the_cli_pixels(cli, blob_scene, tmp_path, overrides,
     assert img.shape[:2] == ref.shape[:2]
     assert img[..., :3].max() > 0 or overrides.get("model") == "absorption"
     np.testing.assert_array_equal(img[..., :3], ref)  # bit for bit
+
+
+def test_packets_give_the_one_by_one_pixels(blob_scene):
+    for integrator in ("alpha", "riemann"):
+        packets = fathom.render_scene(blob_scene, integrator=integrator)
+        one_by_one = fathom.render_scene(blob_scene, integrator=integrator, no_packets=True)
+        assert packets[..., :3].max() > 0
+        np.testing.assert_array_equal(packets, one_by_one)  # bit for bit
 
 
 def test_render_equals_render_scene_for_the_same_scene(blob_scene):
