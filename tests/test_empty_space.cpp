@@ -435,6 +435,50 @@ TEST(EmptySpace, BoxesAheadSkipLargeRegionsExactly) {
                 << to_string(k) << " " << to_string(o);
 }
 
+// EmptySpace::along: the box ahead of a macrocell, kept as wide across and
+// made longer along one axis, holds only macrocells of that one's kind, and
+// it is longer than the box ahead somewhere.
+TEST(EmptySpace, LongerBoxesAlongAnAxisHoldOneKind) {
+    Volume v = make_volume(83, 71, 97, [](double x, double y, double z) {
+        const double a = std::sqrt((x - 60) * (x - 60) + (y - 50) * (y - 50) + (z - 70) * (z - 70));
+        const double b = std::sqrt((x - 15) * (x - 15) + (y - 20) * (y - 20) + (z - 25) * (z - 25));
+        return std::max({0.0, 1.0 - a / 9.0, 1.0 - b / 6.0});
+    });
+    const Classifier c(blob_tf(), v.smallest_spacing());
+    const EmptySpace es = EmptySpace::for_scalar(v, c, Model::emission_absorption, 2, 1);
+    const auto& d = es.dims();
+    const auto n = static_cast<std::size_t>(d[0] * d[1] * d[2]);
+    int wrong = 0, shorter = 0, longer = 0;
+    for (int o = 0; o < 8; ++o) {
+        const std::uint8_t* along = es.along(o);
+        for (std::int64_t z = 0; z < d[2]; ++z)
+            for (std::int64_t y = 0; y < d[1]; ++y)
+                for (std::int64_t x = 0; x < d[0]; ++x) {
+                    const std::array<std::int64_t, 3> m{x, y, z};
+                    const int D = es.distance_ahead(m, o);
+                    for (int a = 0; a < 3; ++a) {
+                        const int len = along[static_cast<std::size_t>(a) * n + es.index(m)];
+                        shorter += len < D ? 1 : 0;
+                        longer += len > D ? 1 : 0;
+                        std::array<std::int64_t, 3> lo{}, hi{};
+                        for (int b = 0; b < 3; ++b) {
+                            const std::int64_t r = (b == a ? len : D) - 1;
+                            const bool down = ((o >> b) & 1) != 0;
+                            lo[b] = down ? std::max<std::int64_t>(m[b] - r, 0) : m[b];
+                            hi[b] = down ? m[b] : std::min(m[b] + r, d[b] - 1);
+                        }
+                        for (std::int64_t k = lo[2]; k <= hi[2]; ++k)
+                            for (std::int64_t j = lo[1]; j <= hi[1]; ++j)
+                                for (std::int64_t i = lo[0]; i <= hi[0]; ++i)
+                                    wrong += es.empty({i, j, k}) != es.empty(m) ? 1 : 0;
+                    }
+                }
+    }
+    EXPECT_EQ(wrong, 0);
+    EXPECT_EQ(shorter, 0);
+    EXPECT_GT(longer, 0);
+}
+
 // The pre-integrated shortcut for ramps where the medium is zero returns the
 // very bits the full evaluation gives, for every model and both variants.
 TEST(EmptySpace, ZeroRampShortcutMatchesTheFullIntegralBitForBit) {

@@ -729,6 +729,7 @@ struct PacketLanes {
     HWY_ALIGN double w[L];  // where the walk goes on
     HWY_ALIGN double T[L], C[3][L];
     HWY_ALIGN double live[L];  // 1: the lane holds a ray
+    HWY_ALIGN double main[L];  // the ray's main axis (its largest |dp|): 0, 1 or 2
     std::int64_t ray[L];
 
     /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values).
@@ -742,6 +743,8 @@ struct PacketLanes {
             B[a][l] = r != nullptr ? r->B[a] : 0.0;
             C[a][l] = 0.0;
         }
+        const double ax = std::abs(dp[0][l]), ay = std::abs(dp[1][l]), az = std::abs(dp[2][l]);
+        main[l] = ax >= ay && ax >= az ? 0.0 : ay >= az ? 1.0 : 2.0;
         tn[l] = r != nullptr ? r->t_near : 0.0;
         dl[l] = r != nullptr ? r->delta : 0.0;
         off[l] = r != nullptr ? r->offset : 0.0;
@@ -797,13 +800,21 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
             m[0], hn::Mul(hn::Set(d, w.dims[0]), hn::Add(m[1], hn::Mul(hn::Set(d, w.dims[1]), m[2]))));
         const M is_empty = hn::And(mid, hn::Ne(GatherBytes(d, w.empty, w.cells, idx), hn::Zero(d)));
         const V r = hn::Sub(GatherBytes(d, w.ahead, w.cells, idx), hn::Set(d, 1.0));
+        // along the ray's main axis (its largest |dp|), the longer box of
+        // EmptySpace::along: r across, r_main along
+        const V axis = hn::Load(d, L.main + o);
+        const V r_main =
+            hn::Sub(GatherBytes(d, w.along, 3 * w.cells,
+                                hn::Add(idx, hn::Mul(axis, hn::Set(d, static_cast<double>(w.cells))))),
+                    hn::Set(d, 1.0));
         const V edge = hn::Set(d, static_cast<double>(std::int64_t{1} << w.shift));
         V lo[3], hi[3];
         V x = hn::Set(d, INFINITY);
         for (int a = 0; a < 3; ++a) {  // EmptySpace::box_ahead, box_face
             const bool down = ((w.octant >> a) & 1) != 0;
-            lo[a] = down ? hn::Max(hn::Sub(m[a], r), hn::Zero(d)) : m[a];
-            hi[a] = down ? m[a] : hn::Min(hn::Add(m[a], r), hn::Set(d, w.dims[a] - 1.0));
+            const V ra = hn::IfThenElse(hn::Eq(axis, hn::Set(d, static_cast<double>(a))), r_main, r);
+            lo[a] = down ? hn::Max(hn::Sub(m[a], ra), hn::Zero(d)) : m[a];
+            hi[a] = down ? m[a] : hn::Min(hn::Add(m[a], ra), hn::Set(d, w.dims[a] - 1.0));
             const V face =
                 down ? hn::Mul(lo[a], edge)
                      : hn::Min(hn::Mul(hn::Add(hi[a], hn::Set(d, 1.0)), edge), hn::Set(d, w.nodes[a] - 1.0));

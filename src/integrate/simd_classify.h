@@ -215,11 +215,14 @@ struct PacketRay {
 struct PacketWalk {
     const std::uint8_t* empty = nullptr;  // per macrocell: 1 where empty
     const std::uint8_t* ahead = nullptr;  // distance_ahead in `octant`
-    std::int64_t cells = 0;               // macrocells (at least 4)
-    double dims[3] = {0, 0, 0};           // macrocells per axis
-    double nodes[3] = {0, 0, 0};          // lattice nodes per axis
-    int shift = 0;                        // cells per macrocell edge: 2^shift
-    int octant = 0;                       // bit a: the rays go down axis a
+    /// EmptySpace::along in `octant`: per axis, how far the box ahead
+    /// reaches along it (3 × cells bytes).
+    const std::uint8_t* along = nullptr;
+    std::int64_t cells = 0;       // macrocells (at least 4)
+    double dims[3] = {0, 0, 0};   // macrocells per axis
+    double nodes[3] = {0, 0, 0};  // lattice nodes per axis
+    int shift = 0;                // cells per macrocell edge: 2^shift
+    int octant = 0;               // bit a: the rays go down axis a
 };
 
 struct PacketResult {

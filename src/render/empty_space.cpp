@@ -234,6 +234,44 @@ const std::uint8_t* EmptySpace::ahead(int o) const {
     return oc.grid[k].data();
 }
 
+const std::uint8_t* EmptySpace::along(int o) const {
+    Octants& oc = *ahead_;
+    const auto k = static_cast<std::size_t>(o);
+    std::call_once(oc.along_once[k], [&] {
+        const std::uint8_t* dist = ahead(o);
+        const std::size_t n = empty_.size();
+        std::vector<std::uint8_t>& out = oc.along[k];
+        out.resize(3 * n);
+        const auto& d = dims_;
+        for (int a = 0; a < 3; ++a) {
+            const std::int64_t s = (o >> a & 1) != 0 ? -1 : 1;
+            const std::int64_t stride = a == 0 ? 1 : a == 1 ? d[0] : d[0] * d[1];
+            std::uint8_t* row = out.data() + static_cast<std::size_t>(a) * n;
+            for (std::int64_t z = 0; z < d[2]; ++z)
+                for (std::int64_t y = 0; y < d[1]; ++y)
+                    for (std::int64_t x = 0; x < d[0]; ++x) {
+                        const std::int64_t i = x + d[0] * (y + d[1] * z);
+                        const std::int64_t c = a == 0 ? x : a == 1 ? y : z;
+                        const int D = dist[i];
+                        int len = D;
+                        std::int64_t at = c, j = i;
+                        for (int hop = 0; hop < 2 && len < kMaxDistance; ++hop) {
+                            const int step = dist[j];
+                            at += s * step;
+                            if (at < 0 || at >= d[a]) break;
+                            j += s * step * stride;
+                            if (empty_[static_cast<std::size_t>(j)] != empty_[static_cast<std::size_t>(i)] ||
+                                dist[j] < D)
+                                break;
+                            len = std::min(len + dist[j], kMaxDistance);
+                        }
+                        row[i] = static_cast<std::uint8_t>(len);
+                    }
+        }
+    });
+    return oc.along[k].data();
+}
+
 // One pass for octant o, from the far corner of that octant back: the box
 // reaching r ahead of m is m and the boxes reaching r − 1 ahead of its 7
 // neighbours ahead, so D(m) = 1 + min over them, where a neighbour of the

@@ -222,6 +222,7 @@ struct Renderer::Impl {
                                simd::PacketResult* out) {
             w.octant = octant;
             w.ahead = es.ahead(octant);
+            w.along = es.along(octant);
             simd::trace_packets(batch, w, group, count, s.termination, bg.data(), out);
         };
         tp.results.resize(tp.rays.size());
