@@ -450,7 +450,7 @@ TEST(EmptySpace, LongerBoxesAlongAnAxisHoldOneKind) {
     const auto n = static_cast<std::size_t>(d[0] * d[1] * d[2]);
     int wrong = 0, shorter = 0, longer = 0;
     for (int o = 0; o < 8; ++o) {
-        const std::uint8_t* along = es.along(o);
+        const std::uint8_t* along = es.along(o, 7);
         for (std::int64_t z = 0; z < d[2]; ++z)
             for (std::int64_t y = 0; y < d[1]; ++y)
                 for (std::int64_t x = 0; x < d[0]; ++x) {

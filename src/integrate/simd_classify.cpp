@@ -743,8 +743,7 @@ struct PacketLanes {
             B[a][l] = r != nullptr ? r->B[a] : 0.0;
             C[a][l] = 0.0;
         }
-        const double ax = std::abs(dp[0][l]), ay = std::abs(dp[1][l]), az = std::abs(dp[2][l]);
-        main[l] = ax >= ay && ax >= az ? 0.0 : ay >= az ? 1.0 : 2.0;
+        main[l] = r != nullptr ? packet_main_axis(r->dp) : 0.0;
         tn[l] = r != nullptr ? r->t_near : 0.0;
         dl[l] = r != nullptr ? r->delta : 0.0;
         off[l] = r != nullptr ? r->offset : 0.0;

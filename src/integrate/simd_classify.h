@@ -210,13 +210,20 @@ struct PacketRay {
     double before, after;  // samples j ≤ before or ≥ after lie in empty macrocells
 };
 
+/// The axis of dp's largest |component| (the lower axis on ties): the axis
+/// along which a packet lane takes EmptySpace::along's longer boxes.
+inline int packet_main_axis(const double (&dp)[3]) {
+    const double x = std::abs(dp[0]), y = std::abs(dp[1]), z = std::abs(dp[2]);
+    return x >= y && x >= z ? 0 : y >= z ? 1 : 2;
+}
+
 /// The macrocells a packet walks (EmptySpace), in the octant all its rays
 /// travel in.
 struct PacketWalk {
     const std::uint8_t* empty = nullptr;  // per macrocell: 1 where empty
     const std::uint8_t* ahead = nullptr;  // distance_ahead in `octant`
     /// EmptySpace::along in `octant`: per axis, how far the box ahead
-    /// reaches along it (3 × cells bytes).
+    /// reaches along it (3 × cells bytes; built for the rays' main axes).
     const std::uint8_t* along = nullptr;
     std::int64_t cells = 0;       // macrocells (at least 4)
     double dims[3] = {0, 0, 0};   // macrocells per axis

@@ -234,42 +234,54 @@ const std::uint8_t* EmptySpace::ahead(int o) const {
     return oc.grid[k].data();
 }
 
-const std::uint8_t* EmptySpace::along(int o) const {
+const std::uint8_t* EmptySpace::along(int o, unsigned axes) const {
     Octants& oc = *ahead_;
     const auto k = static_cast<std::size_t>(o);
-    std::call_once(oc.along_once[k], [&] {
-        const std::uint8_t* dist = ahead(o);
-        const std::size_t n = empty_.size();
-        std::vector<std::uint8_t>& out = oc.along[k];
-        out.resize(3 * n);
-        const auto& d = dims_;
-        for (int a = 0; a < 3; ++a) {
-            const std::int64_t s = (o >> a & 1) != 0 ? -1 : 1;
-            const std::int64_t stride = a == 0 ? 1 : a == 1 ? d[0] : d[0] * d[1];
-            std::uint8_t* row = out.data() + static_cast<std::size_t>(a) * n;
-            for (std::int64_t z = 0; z < d[2]; ++z)
-                for (std::int64_t y = 0; y < d[1]; ++y)
-                    for (std::int64_t x = 0; x < d[0]; ++x) {
-                        const std::int64_t i = x + d[0] * (y + d[1] * z);
-                        const std::int64_t c = a == 0 ? x : a == 1 ? y : z;
-                        const int D = dist[i];
-                        int len = D;
-                        std::int64_t at = c, j = i;
-                        for (int hop = 0; hop < 2 && len < kMaxDistance; ++hop) {
-                            const int step = dist[j];
-                            at += s * step;
-                            if (at < 0 || at >= d[a]) break;
-                            j += s * step * stride;
-                            if (empty_[static_cast<std::size_t>(j)] != empty_[static_cast<std::size_t>(i)] ||
-                                dist[j] < D)
-                                break;
-                            len = std::min(len + dist[j], kMaxDistance);
-                        }
-                        row[i] = static_cast<std::uint8_t>(len);
-                    }
+    const std::size_t n = empty_.size();
+    // not zeroed: only the axes built are touched (and resident)
+    std::call_once(oc.along_once[k],
+                   [&] { oc.along[k] = std::make_unique_for_overwrite<std::uint8_t[]>(3 * n); });
+    for (int a = 0; a < 3; ++a)
+        if (((axes >> a) & 1u) != 0)
+            std::call_once(oc.along_axis_once[k][static_cast<std::size_t>(a)],
+                           [&] { build_along(o, a, oc.along[k].get() + static_cast<std::size_t>(a) * n); });
+    return oc.along[k].get();
+}
+
+void EmptySpace::build_along(int o, int a, std::uint8_t* row) const {
+    const std::uint8_t* dist = ahead(o);
+    const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
+    const auto& d = dims_;
+    const std::int64_t s = (o >> a & 1) != 0 ? -1 : 1;
+    const std::int64_t stride = a == 0 ? 1 : a == 1 ? d[0] : d[0] * d[1];
+    const auto inside = [&](std::int64_t at) {
+        return static_cast<std::uint64_t>(at) < static_cast<std::uint64_t>(d[a]);
+    };
+    // without branches (`&` on bools): a hop that leaves the grid or meets
+    // the other kind or a shorter box stops the joining (and stays on the
+    // cell it was on)
+    for (std::int64_t z = 0; z < d[2]; ++z)
+        for (std::int64_t y = 0; y < d[1]; ++y) {
+            const std::int64_t base = d[0] * (y + d[1] * z);
+            for (std::int64_t x = 0; x < d[0]; ++x) {
+                const std::int64_t i = base + x;
+                const std::int64_t c = a == 0 ? x : a == 1 ? y : z;
+                const int D = dist[i];
+                const std::uint8_t k = kind[i];
+                const std::int64_t at1 = c + s * D;
+                bool ok = (D < kMaxDistance) & inside(at1);
+                const std::int64_t j1 = i + (ok ? s * D * stride : 0);
+                const int e1 = dist[j1];
+                ok = ok & (kind[j1] == k) & (e1 >= D);
+                const int len1 = ok ? std::min(D + e1, kMaxDistance) : D;
+                const std::int64_t at2 = at1 + s * e1;
+                ok = ok & (len1 < kMaxDistance) & inside(at2);
+                const std::int64_t j2 = j1 + (ok ? s * e1 * stride : 0);
+                const int e2 = dist[j2];
+                ok = ok & (kind[j2] == k) & (e2 >= D);
+                row[i] = static_cast<std::uint8_t>(ok ? std::min(len1 + e2, kMaxDistance) : len1);
+            }
         }
-    });
-    return oc.along[k].data();
 }
 
 // One pass for octant o, from the far corner of that octant back: the box
@@ -284,32 +296,50 @@ void EmptySpace::build_ahead(int o, std::vector<std::uint8_t>& out) const {
     const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
     std::uint8_t* ahead = out.data();
     const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
-    // index steps to the 7 neighbours ahead (bit 0: along x, 1: y, 2: z)
-    std::int64_t step[8] = {};
-    for (int e = 1; e < 8; ++e)
-        step[e] = ((e & 1) != 0 ? s[0] : 0) + ((e & 2) != 0 ? s[1] * d[0] : 0) +
-                  ((e & 4) != 0 ? s[2] * d[0] * d[1] : 0);
+    std::vector<std::uint8_t> best(static_cast<std::size_t>(d[0]));
     for (std::int64_t zi = 0; zi < d[2]; ++zi)
         for (std::int64_t yi = 0; yi < d[1]; ++yi) {
-            // neighbours inside the grid: those ahead along y and z exist
-            // unless the row lies on that face; along x, all but the first cell
-            unsigned row = 0xFEu;
-            for (int e = 1; e < 8; ++e)
-                if (((e & 2) != 0 && yi == 0) || ((e & 4) != 0 && zi == 0)) row &= ~(1u << e);
+            // rows ahead first: against the octant's direction
             const std::int64_t my = s[1] > 0 ? d[1] - 1 - yi : yi, mz = s[2] > 0 ? d[2] - 1 - zi : zi;
             const std::int64_t base = d[0] * (my + d[1] * mz);
-            for (std::int64_t xi = 0; xi < d[0]; ++xi) {
-                // visit the cells ahead first: against the octant's direction
-                const auto i = static_cast<std::size_t>(base + (s[0] > 0 ? d[0] - 1 - xi : xi));
-                const std::uint8_t empty = kind[i];
-                int best = kMaxDistance;
-                for (unsigned e = 1, valid = xi == 0 ? row & 0x55u : row; e < 8; ++e) {
-                    if (((valid >> e) & 1u) == 0) continue;
-                    const auto k = static_cast<std::size_t>(static_cast<std::int64_t>(i) + step[e]);
-                    // a neighbour of the other kind stops the box
-                    best = std::min(best, kind[k] == empty ? static_cast<int>(ahead[k]) : 0);
+            const std::uint8_t* kr = kind + base;
+            std::uint8_t* ar = ahead + base;
+            std::fill(best.begin(), best.end(), static_cast<std::uint8_t>(kMaxDistance));
+            // the 6 neighbours ahead in the rows ahead (bit 0 of e: along x,
+            // 1: y, 2: z), which exist unless this row lies on that face, a
+            // whole row at a time
+            for (int e = 2; e < 8; ++e) {
+                if (((e & 2) != 0 && yi == 0) || ((e & 4) != 0 && zi == 0)) continue;
+                const std::int64_t dx = (e & 1) != 0 ? s[0] : 0;
+                const std::int64_t off =
+                    dx + ((e & 2) != 0 ? s[1] * d[0] : 0) + ((e & 4) != 0 ? s[2] * d[0] * d[1] : 0);
+                const std::uint8_t* kn = kr + off;
+                const std::uint8_t* an = ar + off;
+                std::uint8_t* b = best.data();
+                // the cells whose neighbour along x is inside the row (best
+                // is not the volume's: no dependence between iterations)
+#pragma GCC ivdep
+                for (std::int64_t x = dx < 0 ? 1 : 0, x1 = dx > 0 ? d[0] - 1 : d[0]; x < x1; ++x) {
+                    // a neighbour of the other kind stops the box (0xFF
+                    // where of one kind: no branch, so that it vectorizes)
+                    const auto same = static_cast<std::uint8_t>(0u - static_cast<unsigned>(kn[x] == kr[x]));
+                    b[x] = std::min(b[x], static_cast<std::uint8_t>(an[x] & same));
                 }
-                ahead[i] = static_cast<std::uint8_t>(std::min(best + 1, kMaxDistance));
+            }
+            // then along the row, in the octant's order backwards: the
+            // neighbour along x (all but the first cell have one)
+            const std::uint8_t* b = best.data();
+            const std::int64_t last = d[0] - 1;
+            const auto cell = [&](std::int64_t x, int b_x, std::int64_t next) {
+                const int v = std::min(b_x, kr[next] == kr[x] ? static_cast<int>(ar[next]) : 0);
+                ar[x] = static_cast<std::uint8_t>(std::min(v + 1, kMaxDistance));
+            };
+            if (s[0] > 0) {
+                ar[last] = static_cast<std::uint8_t>(std::min(b[last] + 1, kMaxDistance));
+                for (std::int64_t x = last - 1; x >= 0; --x) cell(x, b[x], x + 1);
+            } else {
+                ar[0] = static_cast<std::uint8_t>(std::min(b[0] + 1, kMaxDistance));
+                for (std::int64_t x = 1; x <= last; ++x) cell(x, b[x], x - 1);
             }
         }
 }

@@ -220,14 +220,14 @@ public:
     /// on first use: a frame needs the octants its rays travel in only.
     [[nodiscard]] const std::uint8_t* ahead(int o) const;
     /// Per axis a and macrocell m in octant o, at a·N + index(m) (N the
-    /// macrocell count): how
-    /// far (macrocells, capped at kMaxDistance) the box ahead of m reaches
-    /// along axis a when it keeps its distance_ahead D across: the boxes
-    /// ahead of the macrocells D, then D + D′ further along a, where they
-    /// are of m's kind and reach at least D, joined to m's (at most two of
-    /// them). Every macrocell of that longer box is of m's kind. Built on
-    /// first use (simd::PacketWalk).
-    [[nodiscard]] const std::uint8_t* along(int o) const;
+    /// macrocell count): how far (macrocells, capped at kMaxDistance) the
+    /// box ahead of m reaches along axis a when it keeps its distance_ahead
+    /// D across: the boxes ahead of the macrocells D, then D + D′ further
+    /// along a, where they are of m's kind and reach at least D, joined to
+    /// m's (at most two of them). Every macrocell of that longer box is of
+    /// m's kind. Each axis (bit a of `axes`) is built on first use: only
+    /// those asked for so far are valid (simd::PacketWalk).
+    [[nodiscard]] const std::uint8_t* along(int o, unsigned axes) const;
 
     /// A box of macrocells.
     struct Box {
@@ -261,6 +261,7 @@ private:
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     void build_ahead(int o, std::vector<std::uint8_t>& out) const;
+    void build_along(int o, int a, std::uint8_t* row) const;  // along(): axis a's N bytes
     /// Per macrocell of `groups` (twice the edge): 1 where the (up to) 8 of
     /// these inside it are all empty.
     [[nodiscard]] std::vector<std::uint8_t> groups_empty(const MacrocellLattice& groups) const;
@@ -270,8 +271,9 @@ private:
     struct Octants {                   // distance_ahead per octant, built once on demand
         std::array<std::once_flag, 8> once;
         std::array<std::vector<std::uint8_t>, 8> grid;
-        std::array<std::once_flag, 8> along_once;  // along()
-        std::array<std::vector<std::uint8_t>, 8> along;
+        std::array<std::once_flag, 8> along_once;                      // along(): allocated
+        std::array<std::array<std::once_flag, 3>, 8> along_axis_once;  // along(): each axis built
+        std::array<std::unique_ptr<std::uint8_t[]>, 8> along;
     };
     std::shared_ptr<Octants> ahead_ = std::make_shared<Octants>();  // shared by copies
     std::vector<std::uint32_t> border_;  // non-empty macrocells next to an empty one or the grid's edge

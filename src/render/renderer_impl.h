@@ -222,7 +222,9 @@ struct Renderer::Impl {
                                simd::PacketResult* out) {
             w.octant = octant;
             w.ahead = es.ahead(octant);
-            w.along = es.along(octant);
+            unsigned axes = 0;  // the rays' main axes: the along() rows they read
+            for (std::size_t k = 0; k < count; ++k) axes |= 1u << simd::packet_main_axis(group[k].dp);
+            w.along = es.along(octant, axes);
             simd::trace_packets(batch, w, group, count, s.termination, bg.data(), out);
         };
         tp.results.resize(tp.rays.size());
