@@ -616,8 +616,7 @@ struct DiffRenderer::Impl {
         const RenderSettings& s = base.s;
         const std::int64_t n = segment_count(span.length(), base.h);
         const double delta = span.length() / static_cast<double>(n);
-        const double off =
-            span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
+        const double off = point_offset(s.sample_point, span.sample_offset);
         const SampleGrid point{&span, delta, off, 1};
         const SampleGrid ends{&span, delta, 0.0, 0};
         const bool full = s.integrator == IntegratorKind::preintegrated;

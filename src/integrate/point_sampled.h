@@ -21,6 +21,13 @@ struct Accel {
     const simd::BatchSource* simd = nullptr;
 };
 
+/// Where a segment's point sample lies in it, as a fraction of δ: a span's
+/// jitter (RaySpan::sample_offset) where it is ≥ 0, else the sample_point
+/// setting's camera-side end (0) or midpoint (½).
+inline double point_offset(SamplePoint p, double jitter = -1.0) {
+    return jitter >= 0.0 ? jitter : (p == SamplePoint::mid ? 0.5 : 0.0);
+}
+
 /// `rule` turns a sample (after the model) into its segment; `kind` names
 /// it, so that a SIMD classifier applying the same rule (BatchSource::rule)
 /// hands the segments over directly.
@@ -30,8 +37,7 @@ RayResult integrate_point_sampled(const Medium& medium, const RaySpan& span, con
                                   Rule&& rule) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
-    const double offset =
-        span.sample_offset >= 0.0 ? span.sample_offset : (s.sample_point == SamplePoint::mid ? 0.5 : 0.0);
+    const double offset = point_offset(s.sample_point, span.sample_offset);
     const SampleGrid grid{&span, delta, offset, 1};  // eq. (8): segment i sampled at t_{i−1} + offset·δ
     // SIMD: samples classified kBatch at a time, in the direction of travel.
     simd::RayGrid rg{span.p0, span.dp, span.t_near, delta, offset, 1};

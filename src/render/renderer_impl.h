@@ -137,7 +137,7 @@ struct Renderer::Impl {
             tp.pixels.push_back(xy);
             tp.octants.push_back(o);
         };
-        const double offset = s.sample_point == SamplePoint::mid ? 0.5 : 0.0;
+        const double offset = point_offset(s.sample_point);  // packets: no jitter
         // Without cutting, the rays' spans and walks come a vector at a time
         // after this loop; with a cropping box or clipping planes, one at a time.
         const bool cut = s.crop || !s.clip_planes.empty();
