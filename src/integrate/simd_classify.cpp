@@ -10,6 +10,7 @@
 
 #include "core/parallel.h"
 #include "integrate/point_rules.h"
+#include "render/empty_space.h"
 #include "render/shading.h"
 #include "volume/bricks.h"
 
@@ -716,28 +717,12 @@ constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a v
 constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
 
-/// An empty run may end kExitMargin samples short of the computed exit x
-/// of its box (floor(x − kExitMargin)) without checking the last sample's
-/// macrocell, for a ray that crosses every axis it crosses at a step of at
-/// least kSureStep nodes and whose numbers are bounded as below (and
-/// lattices of at most 10⁵ nodes a side). Then x = f·A + B is off the exact
-/// crossing by a few 10⁻⁷ samples at most (|f·A| ≤ 10⁸, |B| ≤ 10⁷, B's own
-/// terms ≤ 10⁸), and a sample's computed position off its exact one by
-/// below 10⁻¹⁰ nodes (|p0|, |dp·t| ≤ 2·10⁵), 10⁻⁷ samples at that step: far
-/// below the margin, so the sample at the floor lies inside the box. The
-/// run ends at most one sample early; the samples it leaves are sampled,
-/// every sample skipped still lies in an empty macrocell, and the images
-/// keep their bits.
-constexpr double kExitMargin = 1e-5, kSureStep = 1e-3;
-inline bool ExitIsSure(const PacketRay& r) {
-    if (!(r.n <= 1e7)) return false;
-    for (int a = 0; a < 3; ++a) {
-        if (r.A[a] == 0.0) continue;  // never crossed: never bounds a run
-        if (!(std::abs(r.dp[a]) * r.delta >= kSureStep && std::abs(r.B[a]) <= 1e7 &&
-              std::abs(r.p0[a]) <= 1e5))
-            return false;
-    }
-    return true;
+/// RunFinder's exits_are_sure for a lane's ray.
+inline bool ExitIsSure(const PacketRay& r, const PacketWalk& w) {
+    const std::array<std::int64_t, 3> nodes{static_cast<std::int64_t>(w.nodes[0]),
+                                            static_cast<std::int64_t>(w.nodes[1]),
+                                            static_cast<std::int64_t>(w.nodes[2])};
+    return exits_are_sure(r.dp, r.delta, r.A, r.B, r.p0, nodes);
 }
 
 /// The lanes of a packet: one ray each (PacketRay's fields, lane by lane),
@@ -758,7 +743,7 @@ struct PacketLanes {
     std::int64_t ray[L];
 
     /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values).
-    void load(std::size_t l, const PacketRay* r, std::int64_t k) {
+    void load(std::size_t l, const PacketRay* r, std::int64_t k, bool exit_sure) {
         ray[l] = k;
         live[l] = r != nullptr ? 1.0 : 0.0;
         for (int a = 0; a < 3; ++a) {
@@ -769,7 +754,7 @@ struct PacketLanes {
             C[a][l] = 0.0;
         }
         main[l] = r != nullptr ? packet_main_axis(r->dp) : 0.0;
-        sure[l] = r != nullptr && ExitIsSure(*r) ? 1.0 : 0.0;
+        sure[l] = r != nullptr && exit_sure ? 1.0 : 0.0;
         tn[l] = r != nullptr ? r->t_near : 0.0;
         dl[l] = r != nullptr ? r->delta : 0.0;
         off[l] = r != nullptr ? r->offset : 0.0;
@@ -847,10 +832,8 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
         }
         // RunFinder::estimated_last: the exit, clamped to [j, n], floored;
         // short of it by kExitMargin for the empty runs whose exits are sure
-        const bool small = w.nodes[0] <= 1e5 && w.nodes[1] <= 1e5 && w.nodes[2] <= 1e5;
-        const M sure = small ? hn::And(hn::And(is_empty, hn::IsFinite(x)),
-                                       hn::Eq(hn::Load(d, L.sure + o), hn::Set(d, 1.0)))
-                             : hn::FirstN(d, 0);
+        const M sure =
+            hn::And(hn::And(is_empty, hn::IsFinite(x)), hn::Eq(hn::Load(d, L.sure + o), hn::Set(d, 1.0)));
         const V xs = hn::IfThenElse(sure, hn::Sub(x, hn::Set(d, kExitMargin)), x);
         V k = hn::IfThenElse(hn::IsFinite(x), hn::Floor(hn::Min(hn::Max(xs, j), lim)), lim);
         // RunFinder::last_in for the other empty ones: verified on the computed positions
@@ -942,10 +925,10 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     std::size_t next = 0;
     auto load = [&](std::size_t l) {
         if (next < count) {
-            L.load(l, rays + next, static_cast<std::int64_t>(next));
+            L.load(l, rays + next, static_cast<std::int64_t>(next), ExitIsSure(rays[next], w));
             ++next;
         } else {
-            L.load(l, nullptr, -1);
+            L.load(l, nullptr, -1, false);
         }
     };
     for (std::size_t l = 0; l < lanes; ++l) load(l);

@@ -343,6 +343,33 @@ private:
     std::vector<float> range_;  // lo, hi per macrocell, as floats rounded outwards
 };
 
+/// The packets' walk (simd::trace_packets) may end an empty run
+/// kExitMargin samples short of the computed exit x of its box
+/// (floor(x − kExitMargin), RunFinder::estimated_last's x) without
+/// last_in's check of the last sample's macrocell, for a ray that crosses
+/// every axis it crosses (A ≠ 0) at a step of at least kSureStep nodes and
+/// whose numbers are bounded as below, in a lattice of at most 10⁵ nodes a
+/// side. Then x = f·A + B is off the exact crossing by a few 10⁻⁷ samples
+/// at most (|f·A| ≤ 10⁸, |B| ≤ 10⁷, B's own terms ≤ 10⁸), and a sample's
+/// computed position off its exact one by below 10⁻¹⁰ nodes (|p0|, |dp·t|
+/// ≤ 2·10⁵), 10⁻⁷ samples at that step: far below the margin, so the sample
+/// at the floor lies inside the box. The run ends at most one sample early;
+/// the samples it leaves are sampled or walked next, every sample skipped
+/// still lies in an empty macrocell, and the images keep their bits.
+/// (RunFinder keeps its check: without it the one-by-one walk measured
+/// 0.98×.)
+inline constexpr double kExitMargin = 1e-5, kSureStep = 1e-3;
+inline bool exits_are_sure(const double* dp, double delta, const double* A, const double* B, const double* p0,
+                           const std::array<std::int64_t, 3>& nodes) {
+    for (int a = 0; a < 3; ++a) {
+        if (!(nodes[a] <= 100000)) return false;
+        if (A[a] == 0.0) continue;  // never crossed: never bounds a run
+        if (!(std::abs(dp[a]) * delta >= kSureStep && std::abs(B[a]) <= 1e7 && std::abs(p0[a]) <= 1e5))
+            return false;
+    }
+    return true;
+}
+
 /// Sample positions on the segment grid: index j sits at
 /// t_near + (j − first + offset)·δ (first = 1 and the in-segment offset for
 /// the point samples of segments 1..n; first = 0, offset = 0 for the
