@@ -717,7 +717,7 @@ constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a v
 constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
 
-/// RunFinder's exits_are_sure for a lane's ray.
+/// exits_are_sure (render/empty_space.h) for a lane's ray in this walk's lattice.
 inline bool ExitIsSure(const PacketRay& r, const PacketWalk& w) {
     const std::array<std::int64_t, 3> nodes{static_cast<std::int64_t>(w.nodes[0]),
                                             static_cast<std::int64_t>(w.nodes[1]),
@@ -739,7 +739,7 @@ struct PacketLanes {
     HWY_ALIGN double T[L], C[3][L];
     HWY_ALIGN double live[L];  // 1: the lane holds a ray
     HWY_ALIGN double main[L];  // the ray's main axis (its largest |dp|): 0, 1 or 2
-    HWY_ALIGN double sure[L];  // 1: its empty runs' exits need no verification (ExitIsSure)
+    HWY_ALIGN double sure[L];  // 1: its empty runs' exits need no check (ExitIsSure)
     std::int64_t ray[L];
 
     /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values).
