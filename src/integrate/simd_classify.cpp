@@ -717,14 +717,6 @@ constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a v
 constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
 
-/// exits_are_sure (render/empty_space.h) for a lane's ray in this walk's lattice.
-inline bool ExitIsSure(const PacketRay& r, const PacketWalk& w) {
-    const std::array<std::int64_t, 3> nodes{static_cast<std::int64_t>(w.nodes[0]),
-                                            static_cast<std::int64_t>(w.nodes[1]),
-                                            static_cast<std::int64_t>(w.nodes[2])};
-    return exits_are_sure(r.dp, r.delta, r.A, r.B, r.p0, nodes);
-}
-
 /// The lanes of a packet: one ray each (PacketRay's fields, lane by lane),
 /// its place in the sample grid, its walk and its accumulators.
 struct PacketLanes {
@@ -739,7 +731,7 @@ struct PacketLanes {
     HWY_ALIGN double T[L], C[3][L];
     HWY_ALIGN double live[L];  // 1: the lane holds a ray
     HWY_ALIGN double main[L];  // the ray's main axis (its largest |dp|): 0, 1 or 2
-    HWY_ALIGN double sure[L];  // 1: its empty runs' exits need no check (ExitIsSure)
+    HWY_ALIGN double sure[L];  // 1: its empty runs' exits need no check (exits_are_sure)
     std::int64_t ray[L];
 
     /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values).
@@ -832,10 +824,10 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
         }
         // RunFinder::estimated_last: the exit, clamped to [j, n], floored;
         // short of it by kExitMargin for the empty runs whose exits are sure
-        const M sure =
-            hn::And(hn::And(is_empty, hn::IsFinite(x)), hn::Eq(hn::Load(d, L.sure + o), hn::Set(d, 1.0)));
+        const M finite = hn::IsFinite(x);
+        const M sure = hn::And(hn::And(is_empty, finite), hn::Eq(hn::Load(d, L.sure + o), hn::Set(d, 1.0)));
         const V xs = hn::IfThenElse(sure, hn::Sub(x, hn::Set(d, kExitMargin)), x);
-        V k = hn::IfThenElse(hn::IsFinite(x), hn::Floor(hn::Min(hn::Max(xs, j), lim)), lim);
+        V k = hn::IfThenElse(finite, hn::Floor(hn::Min(hn::Max(xs, j), lim)), lim);
         // RunFinder::last_in for the other empty ones: verified on the computed positions
         for (M check = hn::AndNot(sure, is_empty); !hn::AllFalse(d, check);) {
             V pk[3], mk[3];
@@ -925,7 +917,9 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     std::size_t next = 0;
     auto load = [&](std::size_t l) {
         if (next < count) {
-            L.load(l, rays + next, static_cast<std::int64_t>(next), ExitIsSure(rays[next], w));
+            L.load(l, rays + next, static_cast<std::int64_t>(next),
+                   exits_are_sure(rays[next].dp, rays[next].delta, rays[next].A, rays[next].B, rays[next].p0,
+                                  w.nodes));
             ++next;
         } else {
             L.load(l, nullptr, -1, false);

@@ -360,9 +360,9 @@ private:
 /// 0.98×.)
 inline constexpr double kExitMargin = 1e-5, kSureStep = 1e-3;
 inline bool exits_are_sure(const double* dp, double delta, const double* A, const double* B, const double* p0,
-                           const std::array<std::int64_t, 3>& nodes) {
+                           const double* nodes) {
     for (int a = 0; a < 3; ++a) {
-        if (!(nodes[a] <= 100000)) return false;
+        if (!(nodes[a] <= 1e5)) return false;
         if (A[a] == 0.0) continue;  // never crossed: never bounds a run
         if (!(std::abs(dp[a]) * delta >= kSureStep && std::abs(B[a]) <= 1e7 && std::abs(p0[a]) <= 1e5))
             return false;
