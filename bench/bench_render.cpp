@@ -7,11 +7,13 @@
 
 #include <benchmark/benchmark.h>
 
+#include "fathom/io.h"
 #include "fathom/preintegration.h"
 #include "fathom/render.h"
 
 #include "integrate/alpha.h"
 #include "integrate/preintegrated.h"
+#include "render/empty_space.h"
 #include "render/medium.h"
 
 namespace {
@@ -186,8 +188,24 @@ void roofline_ray(benchmark::State& state) {
         benchmark::Counter(static_cast<double>(samples), benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// A frame's pixel bounds (EmptySpace::pixel_bounds) for the bundled chest
+// CT's bone frame (its 2³ macrocells, 34.8 k border boxes; the VTK
+// comparison's camera), 512², on range(0) threads.
+void pixel_bounds(benchmark::State& state) {
+    static const fathom::Volume vol = fathom::read_volume(FATHOM_SOURCE_DIR "/data/lidc2.nrrd");
+    const auto tf = fathom::TransferFunction::preset("ct-bone", vol.value_range());
+    const fathom::Classifier c(tf, vol.smallest_spacing());
+    const int threads = static_cast<int>(state.range(0));
+    const auto es = fathom::EmptySpace::for_scalar(vol, c, fathom::Model::emission_absorption, 1, threads);
+    const auto b = fathom::volume_bounds(vol);
+    const auto cam = fathom::Camera::orbit(90, 10, 2.6, b.center, b.radius);
+    for (auto _ : state)
+        benchmark::DoNotOptimize(es.pixel_bounds(cam, 512, 512, vol.axes(), vol.origin(), threads));
+}
+
 }  // namespace
 
+BENCHMARK(pixel_bounds)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(roofline_trilinear);
 BENCHMARK(roofline_trilinear_simd);
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha)->Name("roofline_ray/alpha");

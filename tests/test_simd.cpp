@@ -682,3 +682,102 @@ TEST(Simd, BoxProjectionMatchesTheScalarCorners) {
     EXPECT_GT(compared, 1000);
     EXPECT_GT(nonfinite, 0);  // boxes across the eye's plane were among them
 }
+
+// The footprints of boxes' images (simd::footprints) against
+// simd::footprint_of, and their drawing (simd::draw_footprints) against
+// std::min and std::max pixel by pixel, bit for bit on every target: images
+// inside, across and outside the image's edges, rows that end at its last
+// column (the vector tail cannot reach past the row there), non-finite
+// images, and t whose nearest float lies above or below it, at ±0, past
+// FLT_MAX and at ±∞.
+TEST(Simd, FootprintsAndTheirDrawingMatchTheScalarRule) {
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    long compared = 0, stepped = 0, whole = 0, drawn = 0;
+    for (int trial = 0; trial < 8; ++trial) {
+        const simd::FootprintRule rule{37 + 11 * trial, 23 + 7 * trial, 1.0 / 16,
+                                       trial % 2 == 0 ? 1e-6 : 0.0};
+        const std::size_t n = 200 + static_cast<std::size_t>(trial) * 13;
+        std::vector<double> image[6];
+        for (auto& v : image) v.assign(n + 16, 0.0);
+        for (std::size_t b = 0; b < n; ++b) {
+            const double cx = (u(rng) * 1.4 - 0.2) * rule.width, cy = (u(rng) * 1.4 - 0.2) * rule.height;
+            const double rx = u(rng) * (b % 5 == 0 ? 40 : 6), ry = u(rng) * 6;
+            image[0][b] = cx - rx;
+            image[1][b] = b % 7 == 0 ? rule.width - 1 + u(rng) * 0.05 : cx + rx;  // to the last column
+            image[2][b] = cy - ry;
+            image[3][b] = cy + ry;
+            const double t = 1 + 400 * u(rng);
+            const double special[] = {0.0, -0.0, 1e-300, -1e-300, 4e38, -4e38, 0.1, -0.1};
+            image[4][b] = b % 11 == 0 ? special[(b / 11) % 8] : t;
+            image[5][b] = b % 13 == 0 ? special[(b / 13 + 3) % 8] : t + 10 * u(rng);
+            if (b % 17 == 0) image[b % 6][b] = b % 34 == 0 ? INFINITY : NAN;
+            if (b % 19 == 0) image[4][b] = -INFINITY;
+        }
+        std::vector<std::int32_t> want_rect(4 * n);
+        std::vector<float> want_t(2 * n);
+        const auto pixels = static_cast<std::size_t>(rule.width * rule.height);
+        std::vector<float> want_lo(pixels, INFINITY), want_hi(pixels, -INFINITY);
+        std::vector<std::size_t> draw;
+        for (std::size_t b = 0; b < n; ++b) {
+            const double box[6] = {image[0][b], image[1][b], image[2][b],
+                                   image[3][b], image[4][b], image[5][b]};
+            simd::footprint_of(rule, box, &want_rect[4 * b], &want_t[2 * b]);
+            whole += std::isfinite(box[0] + box[1] + box[2] + box[3] + box[4] + box[5]) ? 0 : 1;
+            stepped += static_cast<double>(want_t[2 * b]) != box[4] - rule.t_slack ? 1 : 0;
+            // drawn: the finite images with ordinary t (a whole image's (−∞, ∞) would hide the rest)
+            if (!std::isfinite(box[0] + box[1] + box[2] + box[3] + box[4] + box[5]) || b % 11 == 0 ||
+                b % 13 == 0)
+                continue;
+            draw.push_back(b);
+            for (int y = want_rect[4 * b + 2]; y <= want_rect[4 * b + 3]; ++y)
+                for (int x = want_rect[4 * b]; x <= want_rect[4 * b + 1]; ++x) {
+                    const auto k = static_cast<std::size_t>(y * rule.width + x);
+                    want_lo[k] = std::min(want_lo[k], want_t[2 * b]);
+                    want_hi[k] = std::max(want_hi[k], want_t[2 * b + 1]);
+                    ++drawn;
+                }
+        }
+        for (auto t : simd::available_targets()) {
+            simd::force_target(t);
+            std::vector<std::int32_t> rect[4];
+            std::vector<float> ts[2];
+            for (auto& r : rect) r.assign(n + 16, -7);
+            for (auto& v : ts) v.assign(n + 16, -7.0f);
+            const simd::Footprints fp{rect[0].data(), rect[1].data(), rect[2].data(),
+                                      rect[3].data(), ts[0].data(),   ts[1].data()};
+            simd::footprints(rule,
+                             {image[0].data(), image[1].data(), image[2].data(), image[3].data(),
+                              image[4].data(), image[5].data()},
+                             n, fp);
+            for (std::size_t b = 0; b < n; ++b) {
+                for (std::size_t k = 0; k < 4; ++k)
+                    ASSERT_EQ(rect[k][b], want_rect[4 * b + k])
+                        << simd::active_target() << " trial " << trial << " box " << b << " rect " << k;
+                for (std::size_t k = 0; k < 2; ++k)
+                    ASSERT_EQ(std::bit_cast<std::uint32_t>(ts[k][b]),
+                              std::bit_cast<std::uint32_t>(want_t[2 * b + k]))
+                        << simd::active_target() << " trial " << trial << " box " << b << " t " << k << ": "
+                        << ts[k][b] << " against " << want_t[2 * b + k];
+                ++compared;
+            }
+            for (std::size_t k = 0; k < draw.size(); ++k) {  // those footprints, in front
+                for (auto& r : rect) r[k] = r[draw[k]];
+                for (auto& v : ts) v[k] = v[draw[k]];
+            }
+            std::vector<float> lo(pixels, INFINITY), hi(pixels, -INFINITY);
+            simd::draw_footprints(fp, draw.size(), rule.width, lo.data(), hi.data());
+            for (std::size_t k = 0; k < pixels; ++k) {
+                ASSERT_EQ(std::bit_cast<std::uint32_t>(lo[k]), std::bit_cast<std::uint32_t>(want_lo[k]))
+                    << simd::active_target() << " trial " << trial << " pixel " << k;
+                ASSERT_EQ(std::bit_cast<std::uint32_t>(hi[k]), std::bit_cast<std::uint32_t>(want_hi[k]))
+                    << simd::active_target() << " trial " << trial << " pixel " << k;
+            }
+        }
+        simd::force_target(0);
+    }
+    EXPECT_GT(compared, 1000);
+    EXPECT_GT(whole, 10);     // non-finite images took the whole image
+    EXPECT_GT(stepped, 100);  // nearest floats on the wrong side, stepped
+    EXPECT_GT(drawn, 5000);
+}

@@ -344,25 +344,6 @@ void EmptySpace::build_ahead(int o, std::vector<std::uint8_t>& out) const {
         }
 }
 
-namespace {
-
-/// A border macrocell's box as the image sees it: the pixels whose rays may
-/// meet it and bounds on t there.
-struct Footprint {
-    int x0, x1, y0, y1;  // inclusive pixel rectangle, clipped to the image
-    float lo, hi;
-};
-
-/// x rounded to a float no larger (down) or no smaller (up).
-float round_float(double x, bool down) {
-    const auto f = static_cast<float>(x);
-    if (down && static_cast<double>(f) > x) return std::nextafter(f, -INFINITY);
-    if (!down && static_cast<double>(f) < x) return std::nextafter(f, INFINITY);
-    return f;
-}
-
-}  // namespace
-
 PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
                                      const Vec3& origin, int threads, std::size_t boxes_per_thread) const {
     PixelBounds out;
@@ -422,24 +403,10 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
     // at most the farthest corner's)).
     const simd::BoxProjection projection{
         c0, {col[0], col[1], col[2]}, perspective, scale_x, scale_y, bx, by, shift_, m, dims_, nodes_};
-    // The footprint of a box's image (x0 > x1 or y0 > y1: off the image).
-    auto footprint = [&](double x0, double x1, double y0, double y1, double t0, double t1) {
-        if (!std::isfinite(x0 + x1 + y0 + y1 + t0 + t1))  // no bound
-            return Footprint{0, width - 1, 0, height - 1, -INFINITY, INFINITY};
-        Footprint f{};
-        // the pixels whose centres fall in the box's image (pixel x's ray
-        // projects to x exactly, up to rounding far below kPixelSlack)
-        auto clip = [](double v, int n) {
-            return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(n)));
-        };
-        f.x0 = std::max(0, clip(std::ceil(x0 - kPixelSlack), width));
-        f.x1 = std::min(width - 1, clip(std::floor(x1 + kPixelSlack), width));
-        f.y0 = std::max(0, clip(std::ceil(y0 - kPixelSlack), height));
-        f.y1 = std::min(height - 1, clip(std::floor(y1 + kPixelSlack), height));
-        f.lo = round_float(t0 - slack, true);
-        f.hi = round_float(t1 + slack, false);
-        return f;
-    };
+    // The footprint of a box's image (simd::footprint_of): the pixels whose
+    // centres fall in it (pixel x's ray projects to x exactly, up to
+    // rounding far below kPixelSlack), its t rounded outwards.
+    const simd::FootprintRule rule{width, height, kPixelSlack, slack};
     out.width = width;
     const auto pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     // One parallel region: each thread projects a contiguous share of the
@@ -459,16 +426,6 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
                   1 + static_cast<std::int64_t>(border_.size() / std::max<std::size_t>(1, boxes_per_thread)),
                   std::max<std::int64_t>(2, 1 + (std::int64_t{32} << 20) / copy_bytes)})));
     std::vector<std::vector<float>> own_lo(static_cast<std::size_t>(nt - 1)), own_hi(own_lo.size());
-    auto draw = [&](const Footprint& f, float* lo_rows, float* hi_rows) {
-        for (int y = f.y0; y <= f.y1; ++y) {
-            float* lo = lo_rows + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
-            float* hi = hi_rows + static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
-            for (int x = f.x0; x <= f.x1; ++x) {
-                lo[x] = std::min(lo[x], f.lo);
-                hi[x] = std::max(hi[x], f.hi);
-            }
-        }
-    };
     parallel_blocks(border_.size(), nt, [&](std::size_t b0, std::size_t b1, int t) {
         std::vector<float>& lo = t == 0 ? out.lo : own_lo[static_cast<std::size_t>(t - 1)];
         std::vector<float>& hi = t == 0 ? out.hi : own_hi[static_cast<std::size_t>(t - 1)];
@@ -476,14 +433,15 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         hi.assign(pixels, -INFINITY);
         constexpr std::size_t kBlock = 256;
         double images[6][kBlock + 8];  // project_boxes fills whole vectors
+        std::int32_t rects[4][kBlock + 16];
+        float ts[2][kBlock + 16];  // footprints fills whole vectors too
         const simd::BoxImages im{images[0], images[1], images[2], images[3], images[4], images[5]};
+        const simd::Footprints fp{rects[0], rects[1], rects[2], rects[3], ts[0], ts[1]};
         for (std::size_t b = b0; b < b1; b += kBlock) {
             const std::size_t n = std::min(kBlock, b1 - b);
             simd::project_boxes(projection, border_.data() + b, n, im);
-            for (std::size_t k = 0; k < n; ++k)
-                draw(footprint(images[0][k], images[1][k], images[2][k], images[3][k], images[4][k],
-                               images[5][k]),
-                     lo.data(), hi.data());
+            simd::footprints(rule, im, n, fp);
+            simd::draw_footprints(fp, n, width, lo.data(), hi.data());
         }
     });
     if (nt > 1)  // min and max in any order: the same bounds as one thread's
