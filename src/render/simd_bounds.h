@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 
 #include "fathom/math.h"
 
@@ -58,8 +59,14 @@ struct Footprints {
     float *lo, *hi;
 };
 
-/// x rounded to a float no larger (down) or no smaller (up).
+/// x rounded to a float no larger (down) or no smaller (up). Beyond the
+/// floats' range (where a conversion would be undefined) what rounding to
+/// the nearest float and stepping give: down, FLT_MAX above it (∞ at ∞)
+/// and −∞ below it; up, ∞ above it and −FLT_MAX below it (−∞ at −∞).
 inline float round_float(double x, bool down) {
+    constexpr double kMax = std::numeric_limits<float>::max();
+    if (x > kMax) return down && !std::isinf(x) ? std::numeric_limits<float>::max() : INFINITY;
+    if (x < -kMax) return !down && !std::isinf(x) ? -std::numeric_limits<float>::max() : -INFINITY;
     const auto f = static_cast<float>(x);
     if (down && static_cast<double>(f) > x) return std::nextafter(f, -INFINITY);
     if (!down && static_cast<double>(f) < x) return std::nextafter(f, INFINITY);
