@@ -713,6 +713,10 @@ HWY_INLINE V GatherBytes(D d, const std::uint8_t* bytes, std::int64_t size, V i)
 /// the other's arithmetic, and each branch serves both.
 constexpr std::size_t kPacketVectors = 2;
 constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a vector at most
+/// Samples a lane takes per step: its next ones, in its run and on into the
+/// next run found, so that a step's bookkeeping serves several samples and
+/// their gathers overlap.
+constexpr std::size_t kSteps = 4;
 /// The runs a lane's walk may find ahead of its samples.
 constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
@@ -927,9 +931,9 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     };
     for (std::size_t l = 0; l < lanes; ++l) load(l);
     const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
-    HWY_ALIGN double cell[kPacketGroups][3][kBatch];
-    HWY_ALIGN double frac[kPacketGroups][3][kBatch];
-    HWY_ALIGN double values[kPacketGroups * kBatch];
+    HWY_ALIGN double cell[kSteps][kPacketGroups][3][kBatch];
+    HWY_ALIGN double frac[kSteps][kPacketGroups][3][kBatch];
+    HWY_ALIGN double values[kSteps][kPacketGroups * kBatch];
     // The lanes whose bit is set in `done` finish: their results, with the
     // background where the ray went through (eq. (10)); then the next rays.
     auto finish = [&](const M* done, bool background) {
@@ -993,31 +997,74 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             finish(mask, true);
             continue;
         }
-        // one sample per lane
+        // up to kSteps samples per lane, i, i + 1, … to the run's end, then on
+        // from the start of the next run in its queue (the empty run between
+        // gives (1, 0)); in ray order, so compositing them in turn is the
+        // one-by-one sum
+        M more_of[kSteps][K];
+        V left[K];  // samples left in the current run
         for (std::size_t h = 0; h < K; ++h) {
-            V p[3];
-            LanePositions(d, L, h * N, hn::Load(d, L.i + h * N), p);
+            const V i = hn::Load(d, L.i + h * N), re = hn::Load(d, L.run_end + h * N);
+            const V ns = hn::Load(d, L.next_start[0] + h * N), ne = hn::Load(d, L.next_end[0] + h * N);
+            left[h] = hn::Sub(re, i);  // + 1
             const std::size_t g = h * N / kBatch, b = h * N % kBatch;
-            for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[g], frac[g]);
+            for (std::size_t q = 0; q < kSteps; ++q) {
+                V p[3];
+                const V qq = hn::Set(d, static_cast<double>(q));
+                const M here = hn::Le(qq, left[h]);
+                // past the run's end: on into the next run found
+                const V jn = hn::Add(ns, hn::Sub(hn::Sub(qq, left[h]), one));
+                const V j = hn::IfThenElse(here, hn::Add(i, qq), jn);
+                more_of[q][h] = hn::And(live[h], hn::Or(here, hn::Le(jn, ne)));
+                LanePositions(d, L, h * N, j, p);
+                for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[q][g], frac[q][g]);
+            }
         }
         for (std::size_t g = 0; g * kBatch < lanes; ++g)
-            trilinear<T>(src, cell[g], frac[g], 0, std::min<std::size_t>(kBatch, lanes - g * kBatch),
-                         values + g * kBatch, false);
+            for (std::size_t q = 0; q < kSteps; ++q)
+                trilinear<T>(src, cell[q][g], frac[q][g], 0,
+                             std::min<std::size_t>(kBatch, lanes - g * kBatch), values[q] + g * kBatch,
+                             false);
         bool stop = false;
         for (std::size_t h = 0; h < K; ++h) {
             const std::size_t o = h * N;
-            const M zero = hn::Or(hn::Lt(hn::Load(d, values + o), e), hn::Not(live[h]));
-            V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
-            if (!hn::AllTrue(d, zero))
-                LaneSegments(d, src, hn::Load(d, values + o), hn::Load(d, L.dl + o), zero, t, rad);
-            // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
+            const V dl = hn::Load(d, L.dl + o);
             V tr = hn::Load(d, L.T + o);
-            for (int k = 0; k < 3; ++k)
-                hn::Store(hn::Add(hn::Load(d, L.C[k] + o), hn::Mul(tr, rad[k])), d, L.C[k] + o);
-            tr = hn::Mul(tr, t);
+            V C[3];
+            for (int k = 0; k < 3; ++k) C[k] = hn::Load(d, L.C[k] + o);
+            V taken = hn::Zero(d);
+            for (std::size_t q = 0; q < kSteps; ++q) {
+                // sample q, unless the run has no more or an earlier one stopped the ray
+                const M more = q == 0 ? more_of[0][h] : hn::AndNot(hn::Lt(tr, thr), more_of[q][h]);
+                taken = hn::IfThenElse(more_of[q][h], hn::Add(taken, one), taken);
+                const M zero = hn::Or(hn::Lt(hn::Load(d, values[q] + o), e), hn::Not(more));
+                if (hn::AllTrue(d, zero)) continue;
+                V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
+                LaneSegments(d, src, hn::Load(d, values[q] + o), dl, zero, t, rad);
+                // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
+                for (int k = 0; k < 3; ++k) C[k] = hn::Add(C[k], hn::Mul(tr, rad[k]));
+                tr = hn::Mul(tr, t);
+            }
+            for (int k = 0; k < 3; ++k) hn::Store(C[k], d, L.C[k] + o);
             hn::Store(tr, d, L.T + o);
             const V i = hn::Load(d, L.i + o);
-            hn::Store(hn::IfThenElse(live[h], hn::Add(i, one), i), d, L.i + o);
+            // into the next run: it becomes the current one, the queue moves up
+            const M into = hn::And(live[h], hn::Gt(taken, hn::Add(left[h], one)));
+            const V ns = hn::Load(d, L.next_start[0] + o), ne = hn::Load(d, L.next_end[0] + o);
+            hn::Store(
+                hn::IfThenElse(into, hn::Add(ns, hn::Sub(hn::Sub(taken, left[h]), one)), hn::Add(i, taken)),
+                d, L.i + o);
+            hn::Store(hn::IfThenElse(into, ne, hn::Load(d, L.run_end + o)), d, L.run_end + o);
+            for (std::size_t q = 0; q < kPacketQueue; ++q) {
+                const bool last_place = q + 1 == kPacketQueue;
+                const V qs = hn::IfThenElse(into, last_place ? one : hn::Load(d, L.next_start[q + 1] + o),
+                                            hn::Load(d, L.next_start[q] + o));
+                const V qe =
+                    hn::IfThenElse(into, last_place ? hn::Zero(d) : hn::Load(d, L.next_end[q + 1] + o),
+                                   hn::Load(d, L.next_end[q] + o));
+                hn::Store(qs, d, L.next_start[q] + o);
+                hn::Store(qe, d, L.next_end[q] + o);
+            }
             mask[h] = hn::And(live[h], hn::Lt(tr, thr));
             stop = stop || !hn::AllFalse(d, mask[h]);
         }
