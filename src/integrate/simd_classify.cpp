@@ -716,7 +716,7 @@ constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a v
 /// Samples a lane takes per step: its next ones, in its run and on into the
 /// next run found, so that a step's bookkeeping serves several samples and
 /// their gathers overlap.
-constexpr std::size_t kSteps = 4;
+constexpr std::size_t kSteps = 6;
 /// The runs a lane's walk may find ahead of its samples.
 constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
