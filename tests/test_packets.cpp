@@ -145,6 +145,26 @@ TEST(Packets, ImagesAreBitIdenticalToTracingRaysOneByOne) {
     EXPECT_EQ(compared, 8 * 2 * 3 * 2 * 4);
 }
 
+// σ and c with the same knots (a jump among them), as the CT presets have:
+// the packets then locate a sample's piece once for both.
+TEST(Packets, OpacityAndColorOnTheSameKnotsAreBitIdentical) {
+    for (const Range& r : kTypes) {
+        const Volume v = shells(r.type, r.lo, r.hi);
+        const auto cams = test::comparison_cameras(v);
+        auto at = [&](double f) { return r.lo + (r.hi - r.lo) * f; };
+        TransferFunction tf;
+        tf.alpha_kind = TransferFunction::Alpha::extinction;
+        tf.alpha_points = {{at(0.0), 0.0}, {at(0.33), 0.0}, {at(0.5), 0.6},
+                           {at(0.7), 0.6}, {at(0.7), 2.0},  {at(1.0), 2.5}};
+        tf.color_points = {{at(0.0), {0, 0, 0}},       {at(0.33), {0.2, 0.4, 0.9}},
+                           {at(0.5), {0.9, 0.5, 0.2}}, {at(0.7), {0.9, 0.6, 0.3}},
+                           {at(0.7), {1, 0.9, 0.8}},   {at(1.0), {1, 1, 1}}};
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+            EXPECT_EQ(compare(v, tf, packet_settings(k, Model::emission_absorption), cams), 0)
+                << dtype_name(r.type) << " " << to_string(k);
+    }
+}
+
 // Early termination at several thresholds (none, the default, a high one
 // that stops most rays in their first wall), backgrounds with −0, one
 // thread and two, a step that puts several samples in a cell and one that

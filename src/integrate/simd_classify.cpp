@@ -31,6 +31,52 @@ using D = hn::ScalableTag<double>;
 using V = hn::Vec<D>;
 using M = hn::Mask<D>;
 
+/// Where v lies on a function of at most FlatFunction::kTable knots (and at
+/// most a vector's lanes): the knots i − 1 and i around it (i = the number
+/// of knots ≤ v), its position w on that piece, and whether it lies past
+/// the first and before the last knot.
+struct Piece {
+    using Idx = decltype(hn::IndicesFromVec(D(), hn::Zero(hn::RebindToSigned<D>())));
+    Idx lo, hi;
+    V w;
+    M any_below, any_above;
+    Piece(D d, const FlatFunction& f, V v) {
+        const hn::RebindToSigned<D> di;
+        const std::size_t n = f.knots.size();
+        auto i = hn::Zero(di);
+        for (std::size_t k = 0; k < n; ++k)
+            i = hn::Sub(i, hn::VecFromMask(di, hn::RebindMask(di, hn::Le(hn::Set(d, f.knots[k]), v))));
+        lo = hn::IndicesFromVec(d, hn::Max(hn::Sub(i, hn::Set(di, 1)), hn::Zero(di)));
+        hi = hn::IndicesFromVec(d, hn::Min(i, hn::Set(di, static_cast<std::int64_t>(n - 1))));
+        const V below = hn::TableLookupLanes(hn::LoadU(d, f.table[0]), lo);
+        w = exp_v::PiecePosition(v, below,
+                                 hn::TableLookupLanes(hn::LoadU(d, f.table[FlatFunction::kInvRow]), lo));
+        any_below = hn::RebindMask(d, hn::Gt(i, hn::Zero(di)));
+        any_above = hn::RebindMask(d, hn::Lt(i, hn::Set(di, static_cast<std::int64_t>(n))));
+    }
+};
+
+/// f's components on the piece p (knots i − 1 and i by lane permutation:
+/// the same operands as eval's loops below).
+HWY_INLINE void on_piece(D d, const FlatFunction& f, const Piece& p, V* out) {
+    const std::size_t n = f.knots.size();
+    for (int c = 0; c < f.components; ++c) {
+        const V y = hn::LoadU(d, f.table[1 + c]);
+        const V y0 = hn::TableLookupLanes(y, p.lo), y1 = hn::TableLookupLanes(y, p.hi);
+        const V r = exp_v::Fma(p.w, hn::Sub(y1, y0), y0);
+        out[c] = hn::IfThenElse(p.any_below, hn::IfThenElse(p.any_above, r, hn::Set(d, f.y[c][n - 1])),
+                                hn::Set(d, f.y[c][0]));
+    }
+}
+
+/// Whether σ and c share their knots, few enough for Piece: one Piece then
+/// serves both.
+inline bool shared_pieces(const BatchSource& src) {
+    const std::size_t n = src.sigma->knots.size();
+    return n > 1 && n <= FlatFunction::kTable && n <= hn::Lanes(D()) &&
+           src.sigma->knots == src.color->knots && src.sigma->inv == src.color->inv;
+}
+
 /// f(v) per lane for each component, as PiecewiseLinear::on_piece(piece(v),
 /// v) computes it: the same operations in the same order.
 HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
@@ -42,26 +88,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         return;
     }
     if (n <= FlatFunction::kTable && n <= hn::Lanes(d)) {
-        // i = the number of knots ≤ v; knots i − 1 and i (and their values)
-        // by lane permutation: the same operands as the loops below
-        const hn::RebindToSigned<D> di;
-        auto i = hn::Zero(di);
-        for (std::size_t k = 0; k < n; ++k)
-            i = hn::Sub(i, hn::VecFromMask(di, hn::RebindMask(di, hn::Le(hn::Set(d, kn[k]), v))));
-        const auto lo = hn::IndicesFromVec(d, hn::Max(hn::Sub(i, hn::Set(di, 1)), hn::Zero(di)));
-        const auto hi = hn::IndicesFromVec(d, hn::Min(i, hn::Set(di, static_cast<std::int64_t>(n - 1))));
-        const V below = hn::TableLookupLanes(hn::LoadU(d, f.table[0]), lo);
-        const V w = exp_v::PiecePosition(
-            v, below, hn::TableLookupLanes(hn::LoadU(d, f.table[FlatFunction::kInvRow]), lo));
-        const auto any_below = hn::RebindMask(d, hn::Gt(i, hn::Zero(di)));
-        const auto any_above = hn::RebindMask(d, hn::Lt(i, hn::Set(di, static_cast<std::int64_t>(n))));
-        for (int c = 0; c < nc; ++c) {
-            const V y = hn::LoadU(d, f.table[1 + c]);
-            const V y0 = hn::TableLookupLanes(y, lo), y1 = hn::TableLookupLanes(y, hi);
-            const V r = exp_v::Fma(w, hn::Sub(y1, y0), y0);
-            out[c] = hn::IfThenElse(any_below, hn::IfThenElse(any_above, r, hn::Set(d, f.y[c][n - 1])),
-                                    hn::Set(d, f.y[c][0]));
-        }
+        on_piece(d, f, Piece(d, f, v), out);
         return;
     }
     V below = hn::Set(d, kn[0]), inv = hn::Set(d, f.inv[0]);
@@ -863,12 +890,20 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
 
 /// The segments of one sample per lane (ClassifyBatch's operations: the
 /// transfer function, the model, the rule), (1, 0) where `zero`.
-HWY_INLINE void LaneSegments(D d, const BatchSource& src, V v, V dl, M zero, V& t, V* rad) {
+HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl, M zero, V& t, V* rad) {
     const V one = hn::Set(d, 1.0);
     V r[3];
-    eval(d, *src.sigma, v, r);
-    const V sigma = r[0];
-    eval(d, *src.color, v, r);
+    V sigma;
+    if (shared) {
+        const Piece p(d, *src.sigma, v);
+        on_piece(d, *src.sigma, p, r);
+        sigma = r[0];
+        on_piece(d, *src.color, p, r);
+    } else {
+        eval(d, *src.sigma, v, r);
+        sigma = r[0];
+        eval(d, *src.color, v, r);
+    }
     V g[3];  // ScalarMedium::classify, then apply_model
     for (int k = 0; k < 3; ++k)
         g[k] = src.model == Model::absorption ? hn::Zero(d) : (src.associated ? r[k] : hn::Mul(r[k], sigma));
@@ -931,6 +966,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     };
     for (std::size_t l = 0; l < lanes; ++l) load(l);
     const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
+    const bool shared = shared_pieces(src);
     HWY_ALIGN double cell[kSteps][kPacketGroups][3][kBatch];
     HWY_ALIGN double frac[kSteps][kPacketGroups][3][kBatch];
     HWY_ALIGN double values[kSteps][kPacketGroups * kBatch];
@@ -1040,7 +1076,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const M zero = hn::Or(hn::Lt(hn::Load(d, values[q] + o), e), hn::Not(more));
                 if (hn::AllTrue(d, zero)) continue;
                 V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
-                LaneSegments(d, src, hn::Load(d, values[q] + o), dl, zero, t, rad);
+                LaneSegments(d, src, shared, hn::Load(d, values[q] + o), dl, zero, t, rad);
                 // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
                 for (int k = 0; k < 3; ++k) C[k] = hn::Add(C[k], hn::Mul(tr, rad[k]));
                 tr = hn::Mul(tr, t);
