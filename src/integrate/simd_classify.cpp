@@ -35,12 +35,12 @@ using M = hn::Mask<D>;
 /// most a vector's lanes): the knots i − 1 and i around it (i = the number
 /// of knots ≤ v), its position w on that piece, and whether it lies past
 /// the first and before the last knot.
-struct Piece {
+struct KnotPiece {
     using Idx = decltype(hn::IndicesFromVec(D(), hn::Zero(hn::RebindToSigned<D>())));
     Idx lo, hi;
     V w;
     M any_below, any_above;
-    Piece(D d, const FlatFunction& f, V v) {
+    KnotPiece(D d, const FlatFunction& f, V v) {
         const hn::RebindToSigned<D> di;
         const std::size_t n = f.knots.size();
         auto i = hn::Zero(di);
@@ -58,7 +58,7 @@ struct Piece {
 
 /// f's components on the piece p (knots i − 1 and i by lane permutation:
 /// the same operands as eval's loops below).
-HWY_INLINE void on_piece(D d, const FlatFunction& f, const Piece& p, V* out) {
+HWY_INLINE void on_knot_piece(D d, const FlatFunction& f, const KnotPiece& p, V* out) {
     const std::size_t n = f.knots.size();
     for (int c = 0; c < f.components; ++c) {
         const V y = hn::LoadU(d, f.table[1 + c]);
@@ -69,7 +69,7 @@ HWY_INLINE void on_piece(D d, const FlatFunction& f, const Piece& p, V* out) {
     }
 }
 
-/// Whether σ and c share their knots, few enough for Piece: one Piece then
+/// Whether σ and c share their knots, few enough for KnotPiece: one then
 /// serves both.
 inline bool shared_pieces(const BatchSource& src) {
     const std::size_t n = src.sigma->knots.size();
@@ -88,7 +88,7 @@ HWY_INLINE void eval(D d, const FlatFunction& f, V v, V* out) {
         return;
     }
     if (n <= FlatFunction::kTable && n <= hn::Lanes(d)) {
-        on_piece(d, f, Piece(d, f, v), out);
+        on_knot_piece(d, f, KnotPiece(d, f, v), out);
         return;
     }
     V below = hn::Set(d, kn[0]), inv = hn::Set(d, f.inv[0]);
@@ -895,10 +895,10 @@ HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl
     V r[3];
     V sigma;
     if (shared) {
-        const Piece p(d, *src.sigma, v);
-        on_piece(d, *src.sigma, p, r);
+        const KnotPiece p(d, *src.sigma, v);
+        on_knot_piece(d, *src.sigma, p, r);
         sigma = r[0];
-        on_piece(d, *src.color, p, r);
+        on_knot_piece(d, *src.color, p, r);
     } else {
         eval(d, *src.sigma, v, r);
         sigma = r[0];
