@@ -359,6 +359,17 @@ HWY_INLINE void positions(D d, const RayGrid& ray, std::int64_t j0, std::size_t 
     p[2] = hn::Add(hn::Set(d, ray.p0.z), hn::Mul(hn::Set(d, ray.dp.z), t));
 }
 
+/// Whether trilinear gathers corner pairs for samples of type T.
+template <class T>
+HWY_INLINE bool gathers_pairs(const BatchSource& src) {
+    if constexpr (kPairs<T>) {
+        return sizeof(T) == 4 || src.bricks_x > 0 ||
+               src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax;
+    } else {
+        return false;
+    }
+}
+
 /// GridSampler::interpolate of the located cells of lanes b0 … b1 − 1
 /// (whole vectors): corner pairs gathered where the type has them, the
 /// corners loaded one by one otherwise.
@@ -370,8 +381,7 @@ HWY_INLINE void trilinear(const BatchSource& src, const double (*cell)[kBatch], 
     if constexpr (kPairs<T>) {
         // Each gather fetches a corner and its +x neighbour at once (4
         // gathers for 8 corners), in vectors.
-        if (sizeof(T) == 4 || src.bricks_x > 0 ||
-            src.nx * src.ny * src.nz * static_cast<std::int64_t>(sizeof(T)) <= kPairBytesMax) {
+        if (gathers_pairs<T>(src)) {
             pair_corners<T>(src, cell, frac, b0, b1, out, skip_inactive && src.active != nullptr);
             return;
         }
@@ -744,6 +754,9 @@ constexpr std::size_t kPacketLanesMax = 8 * kPacketVectors;  // 8 doubles to a v
 /// next run found, so that a step's bookkeeping serves several samples and
 /// their gathers overlap.
 constexpr std::size_t kSteps = 6;
+/// How far ahead of a step's first sample (two steps) a lane prefetches its
+/// cell's corner rows.
+constexpr std::size_t kPrefetchAhead = 12;
 /// The runs a lane's walk may find ahead of its samples.
 constexpr std::size_t kPacketQueue = 2;
 constexpr std::size_t kPacketGroups = (kPacketLanesMax + kBatch - 1) / kBatch;  // of kBatch lanes
@@ -967,6 +980,11 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     for (std::size_t l = 0; l < lanes; ++l) load(l);
     const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
     const bool shared = shared_pieces(src);
+    // corner pairs gathered from bricks or x-fastest nodes: their rows
+    const bool pairs = gathers_pairs<T>(src), bricked = src.bricks_x > 0;
+    const std::int64_t sy = (bricked ? Bricks::kNodes : src.nx) * static_cast<std::int64_t>(sizeof(T)),
+                       sz = sy * (bricked ? Bricks::kNodes : src.ny);
+    const std::int64_t rows[4] = {0, sy, sz, sz + sy};
     HWY_ALIGN double cell[kSteps][kPacketGroups][3][kBatch];
     HWY_ALIGN double frac[kSteps][kPacketGroups][3][kBatch];
     HWY_ALIGN double values[kSteps][kPacketGroups * kBatch];
@@ -1054,6 +1072,19 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 more_of[q][h] = hn::And(live[h], hn::Or(here, hn::Le(jn, ne)));
                 LanePositions(d, L, h * N, j, p);
                 for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[q][g], frac[q][g]);
+            }
+            if (pairs) {  // the corner rows of each lane's cell kPrefetchAhead samples on
+                V p[3];
+                LanePositions(d, L, h * N, hn::Add(i, hn::Set(d, static_cast<double>(kPrefetchAhead))), p);
+                HWY_ALIGN double pc[3][kBatch], pf[3][kBatch];
+                for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], 0, pc, pf);
+                const V node = bricked ? brick_node(d, src, pc, 0) : linear_node(d, src, pc, 0);
+                HWY_ALIGN double at[8];
+                hn::Store(hn::Mul(node, hn::Set(d, static_cast<double>(sizeof(T)))), d, at);
+                for (std::size_t l = 0; l < N; ++l) {
+                    const char* q0 = static_cast<const char*>(src.data) + static_cast<std::int64_t>(at[l]);
+                    for (const std::int64_t r : rows) __builtin_prefetch(q0 + r);
+                }
             }
         }
         for (std::size_t g = 0; g * kBatch < lanes; ++g)
