@@ -3,6 +3,7 @@
 #include "integrate/simd_classify.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <limits>
@@ -228,6 +229,24 @@ HWY_INLINE void gather_x_pair(D d, const BatchSource& src, V o, V* v) {
     }
 }
 
+/// The byte offsets of a cell's four corner rows from its first node: in a
+/// brick, kNodes and kNodes² nodes apart.
+template <class T>
+HWY_INLINE std::array<std::int64_t, 4> corner_rows(const BatchSource& src) {
+    const bool bricked = src.bricks_x > 0;
+    const std::int64_t sy = (bricked ? Bricks::kNodes : src.nx) * static_cast<std::int64_t>(sizeof(T)),
+                       sz = sy * (bricked ? Bricks::kNodes : src.ny);
+    return {0, sy, sz, sz + sy};
+}
+
+/// The byte offset of the first node of the cells of lanes b … b + N − 1,
+/// x-fastest or in bricks: an exact integer in doubles.
+template <class T>
+HWY_INLINE V cell_bytes(D d, const BatchSource& src, const double (*cell)[kBatch], std::size_t b) {
+    return hn::Mul(src.bricks_x > 0 ? brick_node(d, src, cell, b) : linear_node(d, src, cell, b),
+                   hn::Set(d, static_cast<double>(sizeof(T))));
+}
+
 /// GridSampler::interpolate of vectors of cells and fractions, the corners
 /// gathered in pairs (q[0], q[1]) per row: the same values, the same
 /// operations, so the same bits as the scalar fetch.
@@ -238,11 +257,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
     const D d;
     const std::size_t N = hn::Lanes(d);
     constexpr std::int64_t size = sizeof(T);
-    // the rows of a cell's corners: in a brick, kNodes and kNodes² apart
-    const bool bricked = src.bricks_x > 0;
-    const std::int64_t sy = (bricked ? Bricks::kNodes : src.nx) * size,
-                       sz = sy * (bricked ? Bricks::kNodes : src.ny);
-    const std::int64_t rows[4] = {0, sy, sz, sz + sy};
+    const std::array<std::int64_t, 4> rows = corner_rows<T>(src);
     const std::int64_t stored = stored_nodes(src);
     const V bx = hn::Set(d, static_cast<double>(src.nx / 2)),
             by = hn::Set(d, static_cast<double>(src.ny / 2));
@@ -261,9 +276,7 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
                 continue;
             }
         }
-        // the byte offset of the cell's first node: an exact integer in doubles
-        const V bytes = hn::Mul(bricked ? brick_node(d, src, cell, b) : linear_node(d, src, cell, b),
-                                hn::Set(d, static_cast<double>(size)));
+        const V bytes = cell_bytes<T>(d, src, cell, b);
         V c[8];
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
             for (int r = 0; r < 4; ++r)
@@ -807,6 +820,21 @@ struct PacketLanes {
     }
 };
 
+/// Lanes o … o + N − 1 in `m` make the first run of their queue (qs, qe:
+/// its places, loaded) their current one, to its last sample (else `re`
+/// stays), and their queue moves up; the places are stored and left in qs,
+/// qe. The caller sets the lanes' next sample.
+HWY_INLINE void TakeQueuedRun(D d, PacketLanes& L, std::size_t o, M m, V re, V* qs, V* qe) {
+    hn::Store(hn::IfThenElse(m, qe[0], re), d, L.run_end + o);
+    for (std::size_t q = 0; q < kPacketQueue; ++q) {
+        const bool last_place = q + 1 == kPacketQueue;
+        qs[q] = hn::IfThenElse(m, last_place ? hn::Set(d, 1.0) : qs[q + 1], qs[q]);
+        qe[q] = hn::IfThenElse(m, last_place ? hn::Zero(d) : qe[q + 1], qe[q]);
+        hn::Store(qs[q], d, L.next_start[q] + o);
+        hn::Store(qe[q], d, L.next_end[q] + o);
+    }
+}
+
 /// Positions of samples j of the rays of lanes o … o + N − 1: SampleGrid::at (first = 1).
 HWY_INLINE void LanePositions(D d, const PacketLanes& L, std::size_t o, V j, V* p) {
     const V t =
@@ -980,11 +1008,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     for (std::size_t l = 0; l < lanes; ++l) load(l);
     const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
     const bool shared = shared_pieces(src);
-    // corner pairs gathered from bricks or x-fastest nodes: their rows
-    const bool pairs = gathers_pairs<T>(src), bricked = src.bricks_x > 0;
-    const std::int64_t sy = (bricked ? Bricks::kNodes : src.nx) * static_cast<std::int64_t>(sizeof(T)),
-                       sz = sy * (bricked ? Bricks::kNodes : src.ny);
-    const std::int64_t rows[4] = {0, sy, sz, sz + sy};
+    const bool pairs = gathers_pairs<T>(src);  // then prefetched, row by row
+    const std::array<std::int64_t, 4> rows = corner_rows<T>(src);
     HWY_ALIGN double cell[kSteps][kPacketGroups][3][kBatch];
     HWY_ALIGN double frac[kSteps][kPacketGroups][3][kBatch];
     HWY_ALIGN double values[kSteps][kPacketGroups * kBatch];
@@ -1022,14 +1047,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const M has_next = hn::Le(qs[0], qe[0]);
                 const M take = hn::And(ended, has_next);
                 hn::Store(hn::IfThenElse(take, qs[0], i), d, L.i + o);
-                hn::Store(hn::IfThenElse(take, qe[0], re), d, L.run_end + o);
-                for (std::size_t q = 0; q < kPacketQueue; ++q) {  // the queue moves up
-                    const bool last_place = q + 1 == kPacketQueue;
-                    qs[q] = hn::IfThenElse(take, last_place ? one : qs[q + 1], qs[q]);
-                    qe[q] = hn::IfThenElse(take, last_place ? hn::Zero(d) : qe[q + 1], qe[q]);
-                    hn::Store(qs[q], d, L.next_start[q] + o);
-                    hn::Store(qe[q], d, L.next_end[q] + o);
-                }
+                TakeQueuedRun(d, L, o, take, re, qs, qe);
                 const M walking = hn::And(live[h], hn::Le(hn::Load(d, L.w + o), hn::Load(d, L.n + o)));
                 urgent = urgent || !hn::AllFalse(d, hn::AndNot(has_next, hn::And(ended, walking)));
                 // every lane whose queue has room
@@ -1056,11 +1074,11 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         // gives (1, 0)); in ray order, so compositing them in turn is the
         // one-by-one sum
         M more_of[kSteps][K];
-        V left[K];  // samples left in the current run
+        V left[K];  // run_end − i: the samples of the current run after the next one
         for (std::size_t h = 0; h < K; ++h) {
             const V i = hn::Load(d, L.i + h * N), re = hn::Load(d, L.run_end + h * N);
             const V ns = hn::Load(d, L.next_start[0] + h * N), ne = hn::Load(d, L.next_end[0] + h * N);
-            left[h] = hn::Sub(re, i);  // + 1
+            left[h] = hn::Sub(re, i);
             const std::size_t g = h * N / kBatch, b = h * N % kBatch;
             for (std::size_t q = 0; q < kSteps; ++q) {
                 V p[3];
@@ -1078,9 +1096,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 LanePositions(d, L, h * N, hn::Add(i, hn::Set(d, static_cast<double>(kPrefetchAhead))), p);
                 HWY_ALIGN double pc[3][kBatch], pf[3][kBatch];
                 for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], 0, pc, pf);
-                const V node = bricked ? brick_node(d, src, pc, 0) : linear_node(d, src, pc, 0);
                 HWY_ALIGN double at[8];
-                hn::Store(hn::Mul(node, hn::Set(d, static_cast<double>(sizeof(T)))), d, at);
+                hn::Store(cell_bytes<T>(d, src, pc, 0), d, at);
                 for (std::size_t l = 0; l < N; ++l) {
                     const char* q0 = static_cast<const char*>(src.data) + static_cast<std::int64_t>(at[l]);
                     for (const std::int64_t r : rows) __builtin_prefetch(q0 + r);
@@ -1115,23 +1132,17 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             for (int k = 0; k < 3; ++k) hn::Store(C[k], d, L.C[k] + o);
             hn::Store(tr, d, L.T + o);
             const V i = hn::Load(d, L.i + o);
-            // into the next run: it becomes the current one, the queue moves up
+            // into the next run: it becomes the current one
             const M into = hn::And(live[h], hn::Gt(taken, hn::Add(left[h], one)));
-            const V ns = hn::Load(d, L.next_start[0] + o), ne = hn::Load(d, L.next_end[0] + o);
-            hn::Store(
-                hn::IfThenElse(into, hn::Add(ns, hn::Sub(hn::Sub(taken, left[h]), one)), hn::Add(i, taken)),
-                d, L.i + o);
-            hn::Store(hn::IfThenElse(into, ne, hn::Load(d, L.run_end + o)), d, L.run_end + o);
+            V qs[kPacketQueue], qe[kPacketQueue];
             for (std::size_t q = 0; q < kPacketQueue; ++q) {
-                const bool last_place = q + 1 == kPacketQueue;
-                const V qs = hn::IfThenElse(into, last_place ? one : hn::Load(d, L.next_start[q + 1] + o),
-                                            hn::Load(d, L.next_start[q] + o));
-                const V qe =
-                    hn::IfThenElse(into, last_place ? hn::Zero(d) : hn::Load(d, L.next_end[q + 1] + o),
-                                   hn::Load(d, L.next_end[q] + o));
-                hn::Store(qs, d, L.next_start[q] + o);
-                hn::Store(qe, d, L.next_end[q] + o);
+                qs[q] = hn::Load(d, L.next_start[q] + o);
+                qe[q] = hn::Load(d, L.next_end[q] + o);
             }
+            hn::Store(hn::IfThenElse(into, hn::Add(qs[0], hn::Sub(hn::Sub(taken, left[h]), one)),
+                                     hn::Add(i, taken)),
+                      d, L.i + o);
+            TakeQueuedRun(d, L, o, into, hn::Load(d, L.run_end + o), qs, qe);
             mask[h] = hn::And(live[h], hn::Lt(tr, thr));
             stop = stop || !hn::AllFalse(d, mask[h]);
         }
