@@ -335,9 +335,13 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
             for (int t = next++; t < tiles; t = next++) {
                 const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
                 const int w = std::min(kTile, s.width - x0), h = std::min(kTile, s.height - y0);
+                // q along the inner extent (a column's h pixels, or a row's
+                // w), then across; a whole tile divides by the constant
+                const int inner = by_columns ? h : w;
                 auto pixel = [&](int q) {
-                    return std::array<int, 2>{x0 + (by_columns ? q / h : q % w),
-                                              y0 + (by_columns ? q % h : q / w)};
+                    const int across = inner == kTile ? q / kTile : q / inner, along = q - across * inner;
+                    return by_columns ? std::array<int, 2>{x0 + across, y0 + along}
+                                      : std::array<int, 2>{x0 + along, y0 + across};
                 };
                 if (impl_->packets) {
                     impl_->trace_packets(packets, w * h, pixel, rays, bounds, empty_is_background, write);

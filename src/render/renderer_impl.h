@@ -141,8 +141,11 @@ struct Renderer::Impl {
         // Without cutting, the rays' spans and walks come a vector at a time
         // after this loop; with a cropping box or clipping planes, one at a time.
         const bool cut = s.crop || !s.clip_planes.empty();
-        for (auto& v : tp.in) v.clear();
-        tp.in_pixels.clear();
+        // (sized once per tile and filled by index: no push_back per ray)
+        const auto slots = static_cast<std::size_t>(count);
+        for (auto& v : tp.in) v.resize(slots);
+        tp.in_pixels.resize(slots);
+        std::size_t k_in = 0;
         for (int q = 0; q < count; ++q) {
             const auto [x, y] = pixel(q);
             double lo = 0, hi = 0;
@@ -154,12 +157,13 @@ struct Renderer::Impl {
             const Ray ray = rays(x, y);
             if (!cut) {
                 for (int a = 0; a < 3; ++a) {
-                    tp.in[a].push_back(ray.origin[a]);
-                    tp.in[3 + a].push_back(ray.dir[a]);
+                    tp.in[a][k_in] = ray.origin[a];
+                    tp.in[3 + a][k_in] = ray.dir[a];
                 }
-                tp.in[6].push_back(lo);
-                tp.in[7].push_back(hi);
-                tp.in_pixels.push_back({x, y});
+                tp.in[6][k_in] = lo;
+                tp.in[7][k_in] = hi;
+                tp.in_pixels[k_in] = {x, y};
+                ++k_in;
                 continue;
             }
             RaySpan span;
@@ -184,7 +188,7 @@ struct Renderer::Impl {
             RunFinder(es, SampleGrid{&span, r.delta, offset, 1}).forward_walk(o, r.A, r.B, r.before, r.after);
             add(r, {x, y}, o);
         }
-        if (const std::size_t k = tp.in_pixels.size(); k > 0) {
+        if (const std::size_t k = k_in; k > 0) {
             simd::PacketFrame f;
             for (int a = 0; a < 3; ++a) {
                 for (int b = 0; b < 3; ++b) f.world_to_index[a][b] = world_to_index.m[a][b];
