@@ -1,9 +1,9 @@
 // Ray packets (simd::trace_packets, RenderSettings::packets): the
-// point-sampled quadratures traced one ray per SIMD lane must give the very
-// bits of tracing the rays one by one, for every sample type, rule, model,
-// sample point, background, termination threshold, layout and SIMD target,
-// and where the exponential's range runs out. The renderer takes them only
-// where they repeat that path.
+// point-sampled quadratures and pre-integration traced one ray per SIMD
+// lane must give the very bits of tracing the rays one by one, for every
+// sample type, integrator, model, sample point, background, termination
+// threshold, layout and SIMD target, and where the exponential's range runs
+// out. The renderer takes them only where they repeat that path.
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -116,7 +116,16 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
     EXPECT_TRUE(takes([](RenderSettings& s) { s.sample_point = SamplePoint::mid; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.packets = false; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.order = Order::back_to_front; }));
-    EXPECT_FALSE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::preintegrated; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::preintegrated; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::preintegrated_simple; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) {
+        s.integrator = IntegratorKind::preintegrated;
+        s.order = Order::back_to_front;
+    }));
+    EXPECT_FALSE(takes([](RenderSettings& s) {
+        s.integrator = IntegratorKind::preintegrated;
+        s.shading.enabled = true;
+    }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::reference; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.shading.enabled = true; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.jitter = true; }));
@@ -124,6 +133,42 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
     EXPECT_FALSE(takes([](RenderSettings& s) { s.skip_empty = false; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.simd = false; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.model = Model::mip; }));
+}
+
+// Pre-integration takes packets only where empty macrocells join: here a
+// block of constant value whose σ and g are 0 above the ramp is empty but
+// not below the zero range, so a segment between two empty boxes need not
+// be (1, 0).
+TEST(Packets, PreIntegrationTakesThemWhereEmptyMacrocellsJoin) {
+    Volume v({33, 30, 31}, DType::u8);
+    for (std::int64_t k = 0; k < 31; ++k)
+        for (std::int64_t j = 0; j < 30; ++j)
+            for (std::int64_t i = 0; i < 33; ++i) v.set_value(i, j, k, i < 16 ? 0.0 : i < 18 ? 120.0 : 240.0);
+    TransferFunction tf;
+    tf.alpha_kind = TransferFunction::Alpha::extinction;
+    tf.alpha_points = {{0, 0}, {80, 0}, {120, 0.5}, {160, 0}, {250, 0}};
+    tf.color_points = {{0, {1, 1, 1}}, {250, {1, 0.5, 0.2}}};
+    RenderSettings s = packet_settings(IntegratorKind::preintegrated, Model::emission_absorption);
+    EXPECT_FALSE(Renderer(v, tf, s).packets());
+    tf.alpha_points = {{0, 0}, {80, 0}, {120, 0.5}, {250, 0.6}};
+    EXPECT_TRUE(Renderer(v, tf, s).packets());
+}
+
+TEST(Packets, PreIntegrationIsBitIdenticalToItsWindows) {
+    int compared = 0;
+    for (const Range& r : kTypes) {
+        const Volume v = shells(r.type, r.lo, r.hi);
+        const auto cams = test::comparison_cameras(v);
+        for (auto k : {IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple})
+            for (auto m : {Model::emission_absorption, Model::absorption, Model::emission})
+                for (bool associated : {false, true}) {
+                    EXPECT_EQ(compare(v, shell_tf(r.lo, r.hi, associated), packet_settings(k, m), cams), 0)
+                        << dtype_name(r.type) << " " << to_string(k) << " " << to_string(m)
+                        << (associated ? " associated" : "");
+                    compared += static_cast<int>(cams.size());
+                }
+    }
+    EXPECT_EQ(compared, 8 * 2 * 3 * 2 * 4);
 }
 
 TEST(Packets, ImagesAreBitIdenticalToTracingRaysOneByOne) {
@@ -159,7 +204,7 @@ TEST(Packets, OpacityAndColorOnTheSameKnotsAreBitIdentical) {
         tf.color_points = {{at(0.0), {0, 0, 0}},       {at(0.33), {0.2, 0.4, 0.9}},
                            {at(0.5), {0.9, 0.5, 0.2}}, {at(0.7), {0.9, 0.6, 0.3}},
                            {at(0.7), {1, 0.9, 0.8}},   {at(1.0), {1, 1, 1}}};
-        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated})
             EXPECT_EQ(compare(v, tf, packet_settings(k, Model::emission_absorption), cams), 0)
                 << dtype_name(r.type) << " " << to_string(k);
     }
@@ -173,19 +218,20 @@ TEST(Packets, TerminationBackgroundsThreadsAndStepsAreBitIdentical) {
     const Volume v = shells(DType::u16, 100, 60000);
     const auto cams = test::comparison_cameras(v);
     const TransferFunction tf = shell_tf(100, 60000, false, 3.0);
-    for (double termination : {0.0, 1e-3, 0.4})
-        for (const Rgb& bg : {Rgb{0, 0, 0}, Rgb{0.2, -0.0, 0.7}})
-            for (int threads : {1, 2})
-                for (double step : {0.23, 1.7}) {
-                    RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
-                    s.termination = termination;
-                    s.background = bg;
-                    s.threads = threads;
-                    s.step = step;
-                    EXPECT_EQ(compare(v, tf, s, cams), 0)
-                        << "termination " << termination << " background " << bg[1] << " threads " << threads
-                        << " step " << step;
-                }
+    for (auto k : {IntegratorKind::alpha, IntegratorKind::preintegrated})
+        for (double termination : {0.0, 1e-3, 0.4})
+            for (const Rgb& bg : {Rgb{0, 0, 0}, Rgb{0.2, -0.0, 0.7}})
+                for (int threads : {1, 2})
+                    for (double step : {0.23, 1.7}) {
+                        RenderSettings s = packet_settings(k, Model::emission_absorption);
+                        s.termination = termination;
+                        s.background = bg;
+                        s.threads = threads;
+                        s.step = step;
+                        EXPECT_EQ(compare(v, tf, s, cams), 0)
+                            << to_string(k) << " termination " << termination << " background " << bg[1]
+                            << " threads " << threads << " step " << step;
+                    }
 }
 
 // Every SIMD target's packets against its own ray-by-ray path: with fused
@@ -197,7 +243,8 @@ TEST(Packets, EveryTargetIsBitIdenticalToItsRayByRayPath) {
     for (const Range& r : {kTypes[1], kTypes[3], kTypes[6]}) {
         const Volume v = shells(r.type, r.lo, r.hi);
         const auto cams = test::comparison_cameras(v);
-        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated,
+                       IntegratorKind::preintegrated_simple})
             for (auto t : targets) {
                 simd::force_target(t);
                 EXPECT_EQ(
@@ -207,7 +254,7 @@ TEST(Packets, EveryTargetIsBitIdenticalToItsRayByRayPath) {
             }
         simd::force_target(0);
     }
-    EXPECT_EQ(compared, 3 * 2 * static_cast<int>(targets.size()));
+    EXPECT_EQ(compared, 3 * 4 * static_cast<int>(targets.size()));
 }
 
 // Optical depths σδ outside the vector exponential's range take the scalar
@@ -225,33 +272,41 @@ TEST(Packets, ExtinctionBeyondTheExponentialsRangeAndNanNodesAreBitIdentical) {
                           packet_settings(IntegratorKind::riemann, Model::absorption), cams),
                   0)
             << "σ scaled by " << scale;
+        // segments the SIMD lanes leave to the scalar code (PacketPreint::scalar)
+        EXPECT_EQ(compare(v, shell_tf(-1.5, 2.5, false, scale),
+                          packet_settings(IntegratorKind::preintegrated, Model::emission_absorption), cams),
+                  0)
+            << "σ scaled by " << scale;
     }
     Volume nan = v;
     nan.set_value(20, 17, 19, std::numeric_limits<double>::quiet_NaN());
     nan.set_value(3, 30, 5, std::numeric_limits<double>::quiet_NaN());
-    EXPECT_EQ(compare(nan, shell_tf(-1.5, 2.5),
-                      packet_settings(IntegratorKind::alpha, Model::emission_absorption), cams),
-              0);
+    for (auto k :
+         {IntegratorKind::alpha, IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple})
+        EXPECT_EQ(compare(nan, shell_tf(-1.5, 2.5), packet_settings(k, Model::emission_absorption), cams), 0)
+            << to_string(k);
 }
 
 // A renderer that takes its volume over samples bricks: packets read them
 // through the same gathers (64 cells along x and y: two bricks each, a
 // quarter more bytes at most).
 TEST(Packets, BrickedVolumesAreBitIdentical) {
-    for (const Range& r : {kTypes[0], kTypes[3]}) {
-        const Volume v = shells(r.type, r.lo, r.hi, {65, 65, 33});
-        const auto cams = test::comparison_cameras(v);
-        RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
-        s.brick_min_bytes = 0;
-        s.packets = false;
-        const Renderer one_by_one(Volume(v), shell_tf(r.lo, r.hi), s);
-        s.packets = true;
-        const Renderer packets(Volume(v), shell_tf(r.lo, r.hi), s);
-        ASSERT_TRUE(packets.bricked());
-        ASSERT_TRUE(packets.packets());
-        for (const Camera& cam : cams)
-            EXPECT_TRUE(same_pixels(packets.render(cam), one_by_one.render(cam))) << dtype_name(r.type);
-    }
+    for (const Range& r : {kTypes[0], kTypes[3]})
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::preintegrated}) {
+            const Volume v = shells(r.type, r.lo, r.hi, {65, 65, 33});
+            const auto cams = test::comparison_cameras(v);
+            RenderSettings s = packet_settings(k, Model::emission_absorption);
+            s.brick_min_bytes = 0;
+            s.packets = false;
+            const Renderer one_by_one(Volume(v), shell_tf(r.lo, r.hi), s);
+            s.packets = true;
+            const Renderer packets(Volume(v), shell_tf(r.lo, r.hi), s);
+            ASSERT_TRUE(packets.bricked());
+            ASSERT_TRUE(packets.packets());
+            for (const Camera& cam : cams)
+                EXPECT_TRUE(same_pixels(packets.render(cam), one_by_one.render(cam)))
+                    << dtype_name(r.type) << " " << to_string(k);
+        }
 }
 
 // The bundled chest CT under the bone and soft-tissue presets, the frames
@@ -261,12 +316,14 @@ TEST(Packets, ChestCtFramesAreBitIdentical) {
     const Bounds b = volume_bounds(v);
     const std::vector<Camera> cams{Camera::orbit(90, 10, 2.6, b.center, b.radius),
                                    Camera::orbit(30, 20, 2.4, b.center, b.radius)};
-    for (const char* preset : {"ct-bone", "ct-soft-tissue"}) {
-        RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
-        s.width = s.height = 96;
-        s.step = 0.5;
-        EXPECT_EQ(compare(v, TransferFunction::preset(preset, v.value_range()), s, cams), 0) << preset;
-    }
+    for (const char* preset : {"ct-bone", "ct-soft-tissue"})
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::preintegrated}) {
+            RenderSettings s = packet_settings(k, Model::emission_absorption);
+            s.width = s.height = 96;
+            s.step = 0.5;
+            EXPECT_EQ(compare(v, TransferFunction::preset(preset, v.value_range()), s, cams), 0)
+                << preset << " " << to_string(k);
+        }
 }
 
 // The rays' spans and walks come a vector at a time
@@ -285,16 +342,18 @@ TEST(Packets, RaySetUpWithAndWithoutCuttingIsBitIdentical) {
     ortho.projection = Projection::orthographic;
     ortho.height = 3 * b.radius;  // wider than the volume: rays that miss it
     cams.push_back(ortho);
-    RenderSettings s = packet_settings(IntegratorKind::alpha, Model::emission_absorption);
-    s.width = 33;  // odd: a middle column and row of pixels
-    s.height = 31;
-    EXPECT_EQ(compare(v, shell_tf(-2000, 3000), s, cams), 0) << "uncut";
-    RenderSettings crop = s;
-    crop.crop = WorldBox{b.center - Vec3{9, 8, 20}, b.center + Vec3{12, 30, 7}};
-    EXPECT_EQ(compare(v, shell_tf(-2000, 3000), crop, cams), 0) << "cropped";
-    RenderSettings clip = s;
-    clip.clip_planes = {{b.center, {0.3, -1, 0.2}}, {b.center + Vec3{5, 0, 0}, {-1, 0, 0}}};
-    EXPECT_EQ(compare(v, shell_tf(-2000, 3000), clip, cams), 0) << "clipped";
+    for (auto k : {IntegratorKind::alpha, IntegratorKind::preintegrated}) {
+        RenderSettings s = packet_settings(k, Model::emission_absorption);
+        s.width = 33;  // odd: a middle column and row of pixels
+        s.height = 31;
+        EXPECT_EQ(compare(v, shell_tf(-2000, 3000), s, cams), 0) << to_string(k) << " uncut";
+        RenderSettings crop = s;
+        crop.crop = WorldBox{b.center - Vec3{9, 8, 20}, b.center + Vec3{12, 30, 7}};
+        EXPECT_EQ(compare(v, shell_tf(-2000, 3000), crop, cams), 0) << to_string(k) << " cropped";
+        RenderSettings clip = s;
+        clip.clip_planes = {{b.center, {0.3, -1, 0.2}}, {b.center + Vec3{5, 0, 0}, {-1, 0, 0}}};
+        EXPECT_EQ(compare(v, shell_tf(-2000, 3000), clip, cams), 0) << to_string(k) << " clipped";
+    }
 }
 
 // A lane's empty run ends a hair short of its box's computed exit, without
@@ -310,7 +369,7 @@ TEST(Packets, EmptyRunsEndingShortOfTheirExitsAreBitIdentical) {
     for (double az : {0.0, 1e-7, 17.0, 45.0, 90.0 - 1e-7, 135.0})
         for (double el : {0.0, 1e-7, 33.0, -61.0})
             cams.push_back(Camera::orbit(az, el, 2.3, b.center, b.radius));
-    for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+    for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated})
         for (double step : {0.31, 1.1}) {
             RenderSettings s = packet_settings(k, Model::emission_absorption);
             s.step = step;

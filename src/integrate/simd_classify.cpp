@@ -11,6 +11,7 @@
 
 #include "core/parallel.h"
 #include "integrate/point_rules.h"
+#include "integrate/simd_preint.h"
 #include "render/empty_space.h"
 #include "render/shading.h"
 #include "volume/bricks.h"
@@ -856,8 +857,12 @@ HWY_INLINE void LaneMacrocells(D d, const PacketWalk& w, const V* p, V* m) {
 
 /// RunFinder::run(j, +1, n) for the lanes o … o + N − 1 in `need`, from
 /// j = L.w: the walk moves past the run, and a non-empty one joins the
-/// lane's queue.
-HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t o, M need) {
+/// lane's queue. With `queued` (pre-integration's ends), it joins widened
+/// by a sample on either side, from past the last one queued (`queued`,
+/// per lane, which it updates), so that every segment with an end in it is
+/// sampled, each end once.
+HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t o, M need,
+                          double* queued = nullptr) {
     const V j = hn::Load(d, L.w + o), lim = hn::Load(d, L.n + o);
     const V before = hn::Load(d, L.before + o), after = hn::Load(d, L.after + o);
     const M pre = hn::And(need, hn::Le(j, before));
@@ -917,14 +922,22 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
         empty = hn::Or(empty, is_empty);
     }
     const M found = hn::AndNot(empty, need);
-    hn::Store(hn::IfThenElse(need, hn::Add(last, hn::Set(d, 1.0)), j), d, L.w + o);
+    const V one = hn::Set(d, 1.0);
+    hn::Store(hn::IfThenElse(need, hn::Add(last, one), j), d, L.w + o);
+    V start = j, end = last;
+    if (queued != nullptr) {
+        const V before_run = hn::Load(d, queued + o);
+        start = hn::Max(hn::Sub(j, one), hn::Add(before_run, one));
+        end = hn::Min(hn::Add(last, one), lim);
+        hn::Store(hn::IfThenElse(found, end, before_run), d, queued + o);
+    }
     // into the first free place of the lane's queue
     M free = found;
     for (std::size_t q = 0; q < kPacketQueue; ++q) {
         const V qs = hn::Load(d, L.next_start[q] + o), qe = hn::Load(d, L.next_end[q] + o);
         const M put = hn::AndNot(hn::Le(qs, qe), free);
-        hn::Store(hn::IfThenElse(put, j, qs), d, L.next_start[q] + o);
-        hn::Store(hn::IfThenElse(put, last, qe), d, L.next_end[q] + o);
+        hn::Store(hn::IfThenElse(put, start, qs), d, L.next_start[q] + o);
+        hn::Store(hn::IfThenElse(put, end, qe), d, L.next_end[q] + o);
         free = hn::AndNot(put, free);
     }
 }
@@ -987,23 +1000,113 @@ HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl
     for (int k = 0; k < 3; ++k) rad[k] = hn::IfThenElseZero(hn::Not(zero), rad[k]);
 }
 
-template <class T>
+/// A packet's pre-integration (PacketPreint), per lane: the ends sampled
+/// since its last window (kBatch + 1 at most, ends[0] carried over where
+/// the last window went on), the last one's sample, the last sample its
+/// walk queued, and whether its ray stopped.
+struct PreintLanes {
+    static constexpr std::size_t L = kPacketLanesMax;
+    HWY_ALIGN double ends[L][kBatch + 16];  // preintegrate_batch reads past the last end
+    int count[L];
+    double last[L];
+    HWY_ALIGN double queued[L];
+    HWY_ALIGN double stopped[L];  // 1: below the termination threshold
+};
+
+template <class T, bool kPre>
 void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const PacketRay* rays,
-                         std::size_t count, double termination, const double* bg, PacketResult* out) {
+                         std::size_t count, double termination, const double* bg, PacketResult* out,
+                         const PacketPreint* pre) {
     const D d;
     const std::size_t N = hn::Lanes(d), lanes = kPacketVectors * N;
     constexpr std::size_t K = kPacketVectors;
     PacketLanes L;
+    PreintLanes P;  // (its ends zeroed where they are used: read past the last, not used)
+    if constexpr (kPre) std::fill(&P.ends[0][0], &P.ends[0][0] + sizeof P.ends / sizeof(double), 0.0);
     std::size_t next = 0;
     auto load = [&](std::size_t l) {
         if (next < count) {
             L.load(l, rays + next, static_cast<std::int64_t>(next),
                    exits_are_sure(rays[next].dp, rays[next].delta, rays[next].A, rays[next].B, rays[next].p0,
                                   w.nodes));
+            if constexpr (kPre) L.n[l] += 1.0;  // ends 0..n: samples 1..n + 1
             ++next;
         } else {
             L.load(l, nullptr, -1, false);
         }
+        P.count[l] = 0;
+        P.queued[l] = P.stopped[l] = 0.0;
+    };
+    // Pre-integration: lane l's window's segments, composited in order
+    // (composite()'s operations) until one leaves T below the threshold;
+    // then, where `carry`, its last end starts the next window.
+    SegmentBatch segs;
+    auto flush = [&](std::size_t l, bool carry) {
+        const int c = P.count[l];
+        double* e = P.ends[l];
+        if (c >= 2) {
+            const auto n = static_cast<unsigned>(c - 1);
+            std::uint32_t below = 0;  // InterpolateBatch's bits
+            for (std::size_t k = 0; k < static_cast<std::size_t>(c); k += N) {
+                std::uint8_t bits[8] = {};
+                hn::StoreMaskBits(d, hn::Lt(hn::Load(d, e + k), hn::Set(d, src.zero_below)), bits);
+                below |= static_cast<std::uint32_t>(bits[0]) << k;
+            }
+            const std::uint32_t all = (std::uint32_t{1} << n) - 1u, skip = below & (below >> 1) & all;
+            if (skip != all) {
+                const double dl = L.dl[l];
+                preintegrate_batch(src, pre->model, pre->full, dl, e, c, skip, segs);
+                double tr = L.T[l], C[3] = {L.C[0][l], L.C[1][l], L.C[2][l]};
+                for (unsigned i = 0; i < n; ++i) {
+                    if (((skip >> i) & 1u) != 0) continue;  // (1, 0)
+                    double t, r[3];
+                    if (((segs.scalar >> i) & 1u) != 0) {
+                        pre->scalar(pre->ctx, e[i], e[i + 1], dl, &t, r);
+                    } else {
+                        t = segs.transmittance[i];
+                        for (int k = 0; k < 3; ++k) r[k] = segs.radiance[k][i];
+                    }
+                    for (int k = 0; k < 3; ++k) C[k] += tr * r[k];
+                    tr *= t;
+                    if (tr < termination) {
+                        P.stopped[l] = 1.0;
+                        break;
+                    }
+                }
+                L.T[l] = tr;
+                for (int k = 0; k < 3; ++k) L.C[k][l] = C[k];
+            }
+        }
+        if (carry && c > 0) {
+            e[0] = e[c - 1];
+            P.count[l] = 1;
+        } else {
+            P.count[l] = 0;
+        }
+    };
+    // End `j` (a sample index) of lane l, after the last one or past a gap
+    // (whose segments both of whose ends lie in empty macrocells are (1, 0)).
+    auto push = [&](std::size_t l, double j, double v) {
+        if (P.count[l] > 0 && j != P.last[l] + 1.0) flush(l, false);
+        P.ends[l][P.count[l]++] = v;
+        P.last[l] = j;
+        if (P.count[l] == static_cast<int>(kBatch) + 1) flush(l, true);
+    };
+    // A step's ends of lane l: the first m samples of the step (a step's
+    // samples are a prefix of its kSteps), values[q][l] at sample_at[q][l].
+    auto push_step = [&](std::size_t l, std::size_t m, const double(*at)[kPacketLanesMax],
+                         const double(*values)[kPacketGroups * kBatch]) {
+        const double j0 = at[0][l];
+        const int c = P.count[l];
+        if (at[m - 1][l] == j0 + static_cast<double>(m - 1) && (c == 0 || j0 == P.last[l] + 1.0) &&
+            c + static_cast<int>(m) <= static_cast<int>(kBatch) + 1) {  // in a row, into the window
+            for (std::size_t q = 0; q < m; ++q) P.ends[l][c + static_cast<int>(q)] = values[q][l];
+            P.count[l] = c + static_cast<int>(m);
+            P.last[l] = j0 + static_cast<double>(m - 1);
+            if (P.count[l] == static_cast<int>(kBatch) + 1) flush(l, true);
+            return;
+        }
+        for (std::size_t q = 0; q < m && P.stopped[l] == 0.0; ++q) push(l, at[q][l], values[q][l]);
     };
     for (std::size_t l = 0; l < lanes; ++l) load(l);
     const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
@@ -1020,9 +1123,14 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         for (std::size_t h = 0; h < K; ++h) hn::Store(hn::IfThenElseZero(done[h], one), d, mask + h * N);
         for (std::size_t l = 0; l < lanes; ++l) {
             if (mask[l] == 0.0) continue;
+            bool with_bg = background;
+            if constexpr (kPre) {
+                if (background) flush(l, false);  // the last window
+                with_bg = with_bg && P.stopped[l] == 0.0;
+            }
             PacketResult& r = out[L.ray[l]];
             const double tl = L.T[l];
-            for (int c = 0; c < 3; ++c) r.radiance[c] = background ? L.C[c][l] + tl * bg[c] : L.C[c][l];
+            for (int c = 0; c < 3; ++c) r.radiance[c] = with_bg ? L.C[c][l] + tl * bg[c] : L.C[c][l];
             r.alpha = 1.0 - tl;
             load(l);
         }
@@ -1055,7 +1163,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             }
             if (!urgent) break;
             for (std::size_t h = 0; h < K; ++h)
-                if (!hn::AllFalse(d, mask[h])) WalkLanes(d, w, L, h * N, mask[h]);
+                if (!hn::AllFalse(d, mask[h])) WalkLanes(d, w, L, h * N, mask[h], kPre ? P.queued : nullptr);
         }
         // lanes past their last run: finished
         bool any_live = false, through = false;
@@ -1074,12 +1182,15 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         // gives (1, 0)); in ray order, so compositing them in turn is the
         // one-by-one sum
         M more_of[kSteps][K];
+        // how many samples each lane takes, and (pre-integration) which
+        HWY_ALIGN double sampled[kPacketLanesMax], sample_at[kSteps][kPacketLanesMax];
         V left[K];  // run_end − i: the samples of the current run after the next one
         for (std::size_t h = 0; h < K; ++h) {
             const V i = hn::Load(d, L.i + h * N), re = hn::Load(d, L.run_end + h * N);
             const V ns = hn::Load(d, L.next_start[0] + h * N), ne = hn::Load(d, L.next_end[0] + h * N);
             left[h] = hn::Sub(re, i);
             const std::size_t g = h * N / kBatch, b = h * N % kBatch;
+            V steps = hn::Zero(d);
             for (std::size_t q = 0; q < kSteps; ++q) {
                 V p[3];
                 const V qq = hn::Set(d, static_cast<double>(q));
@@ -1088,9 +1199,12 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const V jn = hn::Add(ns, hn::Sub(hn::Sub(qq, left[h]), one));
                 const V j = hn::IfThenElse(here, hn::Add(i, qq), jn);
                 more_of[q][h] = hn::And(live[h], hn::Or(here, hn::Le(jn, ne)));
+                steps = hn::IfThenElse(more_of[q][h], hn::Add(steps, one), steps);
+                if constexpr (kPre) hn::Store(j, d, sample_at[q] + h * N);
                 LanePositions(d, L, h * N, j, p);
                 for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[q][g], frac[q][g]);
             }
+            hn::Store(steps, d, sampled + h * N);
             if (pairs) {  // the corner rows of each lane's cell kPrefetchAhead samples on
                 V p[3];
                 LanePositions(d, L, h * N, hn::Add(i, hn::Set(d, static_cast<double>(kPrefetchAhead))), p);
@@ -1109,28 +1223,38 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 trilinear<T>(src, cell[q][g], frac[q][g], 0,
                              std::min<std::size_t>(kBatch, lanes - g * kBatch), values[q] + g * kBatch,
                              false);
+        if constexpr (kPre) {  // the ends into their lanes' windows, in order
+            for (std::size_t l = 0; l < lanes; ++l) {
+                const auto m = static_cast<std::size_t>(sampled[l]);
+                if (m > 0 && P.stopped[l] == 0.0) push_step(l, m, sample_at, values);
+            }
+        }
         bool stop = false;
         for (std::size_t h = 0; h < K; ++h) {
             const std::size_t o = h * N;
-            const V dl = hn::Load(d, L.dl + o);
-            V tr = hn::Load(d, L.T + o);
-            V C[3];
-            for (int k = 0; k < 3; ++k) C[k] = hn::Load(d, L.C[k] + o);
-            V taken = hn::Zero(d);
-            for (std::size_t q = 0; q < kSteps; ++q) {
-                // sample q, unless the run has no more or an earlier one stopped the ray
-                const M more = q == 0 ? more_of[0][h] : hn::AndNot(hn::Lt(tr, thr), more_of[q][h]);
-                taken = hn::IfThenElse(more_of[q][h], hn::Add(taken, one), taken);
-                const M zero = hn::Or(hn::Lt(hn::Load(d, values[q] + o), e), hn::Not(more));
-                if (hn::AllTrue(d, zero)) continue;
-                V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
-                LaneSegments(d, src, shared, hn::Load(d, values[q] + o), dl, zero, t, rad);
-                // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
-                for (int k = 0; k < 3; ++k) C[k] = hn::Add(C[k], hn::Mul(tr, rad[k]));
-                tr = hn::Mul(tr, t);
+            if constexpr (kPre) {
+                mask[h] = hn::And(live[h], hn::Eq(hn::Load(d, P.stopped + o), one));
+            } else {
+                const V dl = hn::Load(d, L.dl + o);
+                V tr = hn::Load(d, L.T + o);
+                V C[3];
+                for (int k = 0; k < 3; ++k) C[k] = hn::Load(d, L.C[k] + o);
+                for (std::size_t q = 0; q < kSteps; ++q) {
+                    // sample q, unless the run has no more or an earlier one stopped the ray
+                    const M more = q == 0 ? more_of[0][h] : hn::AndNot(hn::Lt(tr, thr), more_of[q][h]);
+                    const M zero = hn::Or(hn::Lt(hn::Load(d, values[q] + o), e), hn::Not(more));
+                    if (hn::AllTrue(d, zero)) continue;
+                    V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
+                    LaneSegments(d, src, shared, hn::Load(d, values[q] + o), dl, zero, t, rad);
+                    // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
+                    for (int k = 0; k < 3; ++k) C[k] = hn::Add(C[k], hn::Mul(tr, rad[k]));
+                    tr = hn::Mul(tr, t);
+                }
+                for (int k = 0; k < 3; ++k) hn::Store(C[k], d, L.C[k] + o);
+                hn::Store(tr, d, L.T + o);
+                mask[h] = hn::And(live[h], hn::Lt(tr, thr));
             }
-            for (int k = 0; k < 3; ++k) hn::Store(C[k], d, L.C[k] + o);
-            hn::Store(tr, d, L.T + o);
+            const V taken = hn::Load(d, sampled + o);
             const V i = hn::Load(d, L.i + o);
             // into the next run: it becomes the current one
             const M into = hn::And(live[h], hn::Gt(taken, hn::Add(left[h], one)));
@@ -1143,7 +1267,6 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                                      hn::Add(i, taken)),
                       d, L.i + o);
             TakeQueuedRun(d, L, o, into, hn::Load(d, L.run_end + o), qs, qe);
-            mask[h] = hn::And(live[h], hn::Lt(tr, thr));
             stop = stop || !hn::AllFalse(d, mask[h]);
         }
         if (stop) finish(mask, false);
@@ -1258,9 +1381,13 @@ void PreparePacketRays(const PacketFrame& f, const PacketRaysIn& in, PacketRay* 
 }
 
 void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* rays, std::size_t count,
-                  double termination, const double* bg, PacketResult* out) {
-    visit_dtype(src.type,
-                [&]<class T>(T*) { trace_packets_typed<T>(src, w, rays, count, termination, bg, out); });
+                  double termination, const double* bg, PacketResult* out, const PacketPreint* pre) {
+    visit_dtype(src.type, [&]<class T>(T*) {
+        if (pre != nullptr)
+            trace_packets_typed<T, true>(src, w, rays, count, termination, bg, out, pre);
+        else
+            trace_packets_typed<T, false>(src, w, rays, count, termination, bg, out, nullptr);
+    });
 }
 
 void ClassifyBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out) {
@@ -1336,8 +1463,8 @@ void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t 
 }
 
 void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
-                   double termination, const double* bg, PacketResult* out) {
-    HWY_DYNAMIC_DISPATCH(TracePackets)(src, walk, rays, count, termination, bg, out);
+                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre) {
+    HWY_DYNAMIC_DISPATCH(TracePackets)(src, walk, rays, count, termination, bg, out, pre);
 }
 
 void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, PacketRay* out, int* octant,

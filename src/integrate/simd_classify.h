@@ -265,11 +265,30 @@ struct PacketRaysIn {
 void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, PacketRay* out, int* octant,
                          std::uint8_t* meets);
 
-/// Traces rays[0..count) (see PacketRay) under src's rule and model with
-/// front-to-back compositing, early termination below `termination` and
-/// background `bg`: out[k] is ray k's result, as composite() would give it.
+/// Pre-integration in packets: each lane samples its own ray's segment
+/// ends (PacketRay's grid with offset 0: end e is sample e + 1, ends 0..n)
+/// where a segment has an end in a non-empty macrocell, and pre-integrates
+/// the segments between them in windows of kBatch + 1 consecutive ends of
+/// its ray (preintegrate_batch, as integrate_preintegrated does), so the
+/// same bits. Only where empty macrocells join (EmptySpace::joins_empty):
+/// a segment whose two ends lie in empty macrocells is then (1, 0).
+struct PacketPreint {
+    Model model = Model::emission_absorption;
+    bool full = true;  // `preintegrated` (else `preintegrated-simple`)
+    /// preintegrate_scalar's segment (vf → vb over delta) where
+    /// preintegrate_batch leaves one to the scalar code.
+    void (*scalar)(const void* ctx, double vf, double vb, double delta, double* t,
+                   double* radiance) = nullptr;
+    const void* ctx = nullptr;
+};
+
+/// Traces rays[0..count) (see PacketRay) under src's rule and model (or,
+/// with `pre`, pre-integrated) with front-to-back compositing, early
+/// termination below `termination` and background `bg`: out[k] is ray k's
+/// result, as composite() would give it.
 void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
-                   double termination, const double* bg, PacketResult* out);
+                   double termination, const double* bg, PacketResult* out,
+                   const PacketPreint* pre = nullptr);
 
 /// ShadedScalarMedium::factors (on-the-fly gradients, BatchSource::shade)
 /// at points j0 .. j0 + count − 1 of `ray` (count ≤ kBatch), per lane.

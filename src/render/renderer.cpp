@@ -12,6 +12,7 @@
 #include "fathom/render.h"
 
 #include "core/parallel.h"
+#include "integrate/preintegrated.h"
 #include "render/empty_space.h"
 #include "render/renderer_impl.h"
 
@@ -50,6 +51,21 @@ constexpr int kMacrocellShift = 2;
 /// "Empty-space skipping"). The average and pre-classified grids keep 4³
 /// (2³ was 0.7–0.9× for the average).
 constexpr double kFineShareWorth = 0.25;
+
+/// simd::PacketPreint::scalar: integrate_preintegrated's scalar segment
+/// (ctx: the renderer's Impl).
+void preint_scalar_segment(const void* ctx, double vf, double vb, double delta, double* t, double* radiance) {
+    const auto& im = *static_cast<const Renderer::Impl*>(ctx);
+    const bool full = im.s.integrator == IntegratorKind::preintegrated;
+    const Segment seg = im.s.model == Model::emission
+                            ? preintegrate_scalar<Model::emission>(im.tf, vf, vb, delta, full)
+                        : im.s.model == Model::absorption
+                            ? preintegrate_scalar<Model::absorption>(im.tf, vf, vb, delta, full)
+                            : preintegrate_scalar<Model::emission_absorption>(im.tf, vf, vb, delta, full);
+    *t = seg.transmittance;
+    for (int k = 0; k < 3; ++k) radiance[k] = seg.radiance[k];
+}
+
 template <class Classify>
 EmptySpace skipping_macrocells(const Volume& v, const RenderSettings& s, Classify&& classify) {
     const auto fine = MacrocellLattice::dims_of(v.dims(), 1);
@@ -229,9 +245,17 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     // Ray packets repeat integrate_point_sampled's SIMD path with skipping
     // (front to back, unshaded, no depth outputs, no jitter).
     const auto& mc = empty_space.dims();
-    packets = s.packets && batch.data != nullptr && batch.rule != simd::PointRule::none &&
+    // So do integrate_preintegrated's SIMD windows where empty macrocells
+    // join (simd::PacketPreint).
+    const bool preint =
+        s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
+    packet_preint_on = preint && optical && empty_space.joins_empty();
+    packets = s.packets && batch.data != nullptr &&
+              ((batch.rule != simd::PointRule::none && !s.jitter) || packet_preint_on) &&
               batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
-              !s.depth_outputs && !s.jitter && skipper() != nullptr && mc[0] * mc[1] * mc[2] >= 4;
+              !s.depth_outputs && skipper() != nullptr && mc[0] * mc[1] * mc[2] >= 4;
+    packet_preint_on = packet_preint_on && packets;
+    packet_preint = {model, s.integrator == IntegratorKind::preintegrated, &preint_scalar_segment, this};
     // (Bricked, the tracer's scalar sampler holds no samples: nothing on
     // that path reads it.)
     tracer = visit_dtype(type, [&]<class T>(T*) {

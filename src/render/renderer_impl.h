@@ -60,6 +60,9 @@ struct Renderer::Impl {
     /// The frame's rays go through simd::trace_packets (RenderSettings::packets):
     /// where the tracer is the unshaded point-sampled SIMD walk it repeats.
     bool packets = false;
+    /// With packets, pre-integrated (packet_preint; else point-sampled).
+    bool packet_preint_on = false;
+    simd::PacketPreint packet_preint;
 
     /// Renderer(volume, tf, settings); `own`: volume is `owned`, which may
     /// go into bricks.
@@ -137,7 +140,8 @@ struct Renderer::Impl {
             tp.pixels.push_back(xy);
             tp.octants.push_back(o);
         };
-        const double offset = point_offset(s.sample_point);  // packets: no jitter
+        // packets: no jitter; pre-integration's ends lie at the segments' near ends
+        const double offset = packet_preint_on ? 0.0 : point_offset(s.sample_point);
         // Without cutting, the rays' spans and walks come a vector at a time
         // after this loop; with a cropping box or clipping planes, one at a time.
         const bool cut = s.crop || !s.clip_planes.empty();
@@ -229,7 +233,8 @@ struct Renderer::Impl {
             unsigned axes = 0;  // the rays' main axes: the along() rows they read
             for (std::size_t k = 0; k < count; ++k) axes |= 1u << simd::packet_main_axis(group[k].dp);
             w.along = es.along(octant, axes);
-            simd::trace_packets(batch, w, group, count, s.termination, bg.data(), out);
+            simd::trace_packets(batch, w, group, count, s.termination, bg.data(), out,
+                                packet_preint_on ? &packet_preint : nullptr);
         };
         tp.results.resize(tp.rays.size());
         const std::size_t count_traced = tp.rays.size();
