@@ -249,12 +249,12 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     // join (simd::PacketPreint).
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
-    packet_preint_on = preint && optical && empty_space.joins_empty();
+    const bool preint_joins = preint && optical && empty_space.joins_empty();
     packets = s.packets && batch.data != nullptr &&
-              ((batch.rule != simd::PointRule::none && !s.jitter) || packet_preint_on) &&
+              ((batch.rule != simd::PointRule::none && !s.jitter) || preint_joins) &&
               batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
               !s.depth_outputs && skipper() != nullptr && mc[0] * mc[1] * mc[2] >= 4;
-    packet_preint_on = packet_preint_on && packets;
+    packet_preint_on = packets && preint_joins;
     packet_preint = {model, s.integrator == IntegratorKind::preintegrated, &preint_scalar_segment, this};
     // (Bricked, the tracer's scalar sampler holds no samples: nothing on
     // that path reads it.)
