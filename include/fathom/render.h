@@ -133,12 +133,12 @@ struct RenderSettings {
     /// SIMD classification of point samples (riemann, alpha) with runtime
     /// dispatch; bit-identical to the scalar path. Off only to measure it.
     bool simd = true;
-    /// Ray packets: riemann and alpha, unshaded, front to back, with
-    /// skipping and SIMD, trace a tile's rays one per SIMD lane, each lane
+    /// Ray packets: riemann and alpha, unshaded, front to back, with SIMD
+    /// (skipping or not), trace a tile's rays one per SIMD lane, each lane
     /// walking and sampling its own ray; so do the pre-integrated
-    /// integrators where empty macrocells join (EmptySpace::joins_empty)
-    /// (docs/performance.md "Ray packets"); bit-identical to tracing them
-    /// one by one. Off only to measure it.
+    /// integrators where they skip and empty macrocells join
+    /// (EmptySpace::joins_empty) (docs/performance.md "Ray packets");
+    /// bit-identical to tracing them one by one. Off only to measure it.
     bool packets = true;
     /// A renderer that keeps its volume (Renderer(Volume&&, ...)) moves the
     /// samples into bricks of 32³ cells (the x-fastest copy handed back as

@@ -227,6 +227,14 @@ EmptySpace EmptySpace::for_zeros(const Volume& v, int shift, int threads) {
     return es;
 }
 
+EmptySpace EmptySpace::none(const Volume& v, int shift) {
+    EmptySpace es;
+    static_cast<MacrocellLattice&>(es) = MacrocellLattice(v, shift);
+    es.empty_.assign(static_cast<std::size_t>(es.dims_[0] * es.dims_[1] * es.dims_[2]), 0);
+    es.joins_empty_ = true;
+    return es;
+}
+
 const std::uint8_t* EmptySpace::ahead(int o) const {
     Octants& oc = *ahead_;
     const auto k = static_cast<std::size_t>(o);

@@ -159,6 +159,11 @@ public:
     static EmptySpace for_isosurfaces(const Volume& v, const std::vector<double>& isos, int shift,
                                       int threads);
 
+    /// The macrocells of `shift` with none of them empty: what ray packets
+    /// walk where nothing is skipped (each ray's span one run).
+    /// joins_empty() holds (there is no empty macrocell to join).
+    static EmptySpace none(const Volume& v, int shift);
+
     /// Macrocells of twice the edge, empty where the (up to) 8 of these
     /// inside them are: where joins_empty(), the classification for_scalar
     /// gives them (every empty range lies below E, and so does their union;

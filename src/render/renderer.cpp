@@ -243,17 +243,24 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch.bricks_z = bricks.bricks_z();
     }
     // Ray packets repeat integrate_point_sampled's SIMD path with skipping
-    // (front to back, unshaded, no depth outputs, no jitter).
-    const auto& mc = empty_space.dims();
+    // (front to back, unshaded, no depth outputs, no jitter), and without:
+    // where nothing is skipped (skipping off, or no macrocell empty) they
+    // walk macrocells none of which is empty (EmptySpace::none), each ray's
+    // span one run, as the one-by-one path's zero split takes it.
+    const bool point = batch.rule != simd::PointRule::none && !s.jitter;
     // So do integrate_preintegrated's SIMD windows where empty macrocells
-    // join (simd::PacketPreint).
+    // join (simd::PacketPreint); without skipping they keep their windows
+    // (no faster in packets there).
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
-    const bool preint_joins = preint && optical && empty_space.joins_empty();
-    packets = s.packets && batch.data != nullptr &&
-              ((batch.rule != simd::PointRule::none && !s.jitter) || preint_joins) &&
-              batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
-              !s.depth_outputs && skipper() != nullptr && mc[0] * mc[1] * mc[2] >= 4;
+    const bool preint_joins = preint && optical && skipper() != nullptr && empty_space.joins_empty();
+    const bool eligible = s.packets && batch.data != nullptr && (point || preint_joins) &&
+                          batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
+                          !s.depth_outputs;
+    if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
+        empty_space = EmptySpace::none(volume, kMacrocellShift);
+    const auto& mc = empty_space.dims();
+    packets = eligible && (skipper() != nullptr || point) && mc[0] * mc[1] * mc[2] >= 4;
     packet_preint_on = packets && preint_joins;
     packet_preint = {model, s.integrator == IntegratorKind::preintegrated, &preint_scalar_segment, this};
     // (Bricked, the tracer's scalar sampler holds no samples: nothing on

@@ -132,7 +132,7 @@ struct Renderer::Impl {
         tp.rays.clear();
         tp.pixels.clear();
         tp.octants.clear();
-        const EmptySpace& es = *skipper();
+        const EmptySpace& es = empty_space;  // the skipper's, or none empty (setup_scalar)
         bool mixed = false;
         auto add = [&](const simd::PacketRay& r, std::array<int, 2> xy, int o) {
             mixed = mixed || (!tp.octants.empty() && o != tp.octants.front());
