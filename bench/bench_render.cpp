@@ -189,6 +189,12 @@ void roofline_ray(benchmark::State& state) {
         benchmark::Counter(static_cast<double>(samples), benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// The bundled chest CT, read once.
+const fathom::Volume& chest_ct() {
+    static const fathom::Volume v = fathom::read_volume(FATHOM_SOURCE_DIR "/data/lidc2.nrrd");
+    return v;
+}
+
 // The SIMD pre-integration of segments alone (simd::preintegrate_batch,
 // full, emission–absorption): the ends of 256 rays across the bundled chest
 // CT at step 0.5, interpolated once, then pre-integrated kBatch segments a
@@ -196,7 +202,7 @@ void roofline_ray(benchmark::State& state) {
 // with both ends below the medium's zero range skipped as the renderer
 // skips them; segments/s per core, skipped ones included.
 void preint_segments(benchmark::State& state) {
-    static const fathom::Volume vol = fathom::read_volume(FATHOM_SOURCE_DIR "/data/lidc2.nrrd");
+    const fathom::Volume& vol = chest_ct();
     const auto tf = fathom::TransferFunction::preset(state.range(0) == 0 ? "ct-soft-tissue" : "ct-bone",
                                                      vol.value_range());
     const double h = 0.5 * vol.smallest_spacing();  // the renderer's step 0.5, in world units
@@ -243,7 +249,7 @@ void preint_segments(benchmark::State& state) {
 // CT's bone frame (its 2³ macrocells, 34.8 k border boxes; the VTK
 // comparison's camera), 512², on range(0) threads.
 void pixel_bounds(benchmark::State& state) {
-    static const fathom::Volume vol = fathom::read_volume(FATHOM_SOURCE_DIR "/data/lidc2.nrrd");
+    const fathom::Volume& vol = chest_ct();
     const auto tf = fathom::TransferFunction::preset("ct-bone", vol.value_range());
     const fathom::Classifier c(tf, vol.smallest_spacing());
     const int threads = static_cast<int>(state.range(0));
