@@ -1,9 +1,13 @@
 #include "render/empty_space.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <limits>
+#include <new>
 #include <numbers>
 #include <type_traits>
 #include <vector>
@@ -235,25 +239,78 @@ EmptySpace EmptySpace::none(const Volume& v, int shift) {
     return es;
 }
 
+void detail::Unmap::operator()(std::uint8_t* p) const noexcept {
+    if (p != nullptr) munmap(p, bytes);
+}
+
+detail::Pages detail::map_pages(std::size_t bytes) {
+    bytes = std::max<std::size_t>(bytes, 1);
+    void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    return Pages(static_cast<std::uint8_t*>(p), Unmap{bytes});
+}
+
+EmptySpace::Use::Use(const EmptySpace& es, bool releases) : oc_(es.ahead_) {
+    if (!oc_) return;
+    const std::lock_guard lock(oc_->uses_mutex);
+    if (releases && oc_->uses == 0)  // no one holds a table's address
+        for (Octants::Table& t : oc_->table) {
+            if (!t.read.load(std::memory_order_relaxed)) {
+                t.ahead.store(nullptr, std::memory_order_relaxed);
+                t.along_axes.store(0, std::memory_order_relaxed);
+                t.ahead_pages.reset();
+                t.along_pages.reset();
+            }
+            t.read.store(false, std::memory_order_relaxed);
+        }
+    ++oc_->uses;
+}
+
+EmptySpace::Use::~Use() {
+    if (!oc_) return;
+    const std::lock_guard lock(oc_->uses_mutex);
+    --oc_->uses;
+}
+
+std::size_t EmptySpace::table_bytes() const {
+    std::size_t bytes = 0;
+    for (const Octants::Table& t : ahead_->table) {
+        if (t.ahead.load(std::memory_order_acquire) != nullptr) bytes += empty_.size();
+        bytes += static_cast<std::size_t>(std::popcount(t.along_axes.load(std::memory_order_acquire))) *
+                 empty_.size();
+    }
+    return bytes;
+}
+
 const std::uint8_t* EmptySpace::ahead(int o) const {
-    Octants& oc = *ahead_;
-    const auto k = static_cast<std::size_t>(o);
-    std::call_once(oc.once[k], [&] { build_ahead(o, oc.grid[k]); });
-    return oc.grid[k].data();
+    Octants::Table& t = ahead_->table[static_cast<std::size_t>(o)];
+    if (!t.read.load(std::memory_order_relaxed)) t.read.store(true, std::memory_order_relaxed);
+    if (const std::uint8_t* p = t.ahead.load(std::memory_order_acquire)) return p;
+    const std::lock_guard lock(t.build);
+    if (const std::uint8_t* p = t.ahead.load(std::memory_order_relaxed)) return p;
+    t.ahead_pages = detail::map_pages(empty_.size());
+    build_ahead(o, t.ahead_pages.get());
+    t.ahead.store(t.ahead_pages.get(), std::memory_order_release);
+    return t.ahead_pages.get();
 }
 
 const std::uint8_t* EmptySpace::along(int o, unsigned axes) const {
-    Octants& oc = *ahead_;
-    const auto k = static_cast<std::size_t>(o);
+    static_cast<void>(ahead(o));  // built (build_along reads it) and marked read
+    Octants::Table& t = ahead_->table[static_cast<std::size_t>(o)];
+    const unsigned built = t.along_axes.load(std::memory_order_acquire);
+    if (built != 0 && (built & axes) == axes) return t.along_pages.get();
+    const std::lock_guard lock(t.build);
     const std::size_t n = empty_.size();
-    // not zeroed: only the axes built are touched (and resident)
-    std::call_once(oc.along_once[k],
-                   [&] { oc.along[k] = std::make_unique_for_overwrite<std::uint8_t[]>(3 * n); });
-    for (int a = 0; a < 3; ++a)
-        if (((axes >> a) & 1u) != 0)
-            std::call_once(oc.along_axis_once[k][static_cast<std::size_t>(a)],
-                           [&] { build_along(o, a, oc.along[k].get() + static_cast<std::size_t>(a) * n); });
-    return oc.along[k].get();
+    // not written where no axis is built: only the axes built are resident
+    if (!t.along_pages) t.along_pages = detail::map_pages(3 * n);
+    for (int a = 0; a < 3; ++a) {
+        const unsigned bit = 1u << a;
+        if ((axes & bit) != 0 && (t.along_axes.load(std::memory_order_relaxed) & bit) == 0) {
+            build_along(o, a, t.along_pages.get() + static_cast<std::size_t>(a) * n);
+            t.along_axes.fetch_or(bit, std::memory_order_release);
+        }
+    }
+    return t.along_pages.get();
 }
 
 void EmptySpace::build_along(int o, int a, std::uint8_t* row) const {
@@ -297,12 +354,10 @@ void EmptySpace::build_along(int o, int a, std::uint8_t* row) const {
 // neighbours ahead, so D(m) = 1 + min over them, where a neighbour of the
 // other kind (empty or not) counts 0; the grid's outside does not stop a
 // box, which is clipped.
-void EmptySpace::build_ahead(int o, std::vector<std::uint8_t>& out) const {
-    const std::size_t n = empty_.size();
-    out.assign(n, 0);
+void EmptySpace::build_ahead(int o, std::uint8_t* out) const {
     const auto& d = dims_;
     const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
-    std::uint8_t* ahead = out.data();
+    std::uint8_t* ahead = out;                 // every byte written, rows ahead first
     const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
     std::vector<std::uint8_t> best(static_cast<std::size_t>(d[0]));
     for (std::int64_t zi = 0; zi < d[2]; ++zi)

@@ -27,7 +27,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -140,7 +142,20 @@ protected:
     std::array<std::int64_t, 3> dims_{};  // macrocells per axis
 };
 
+namespace detail {
+/// Anonymous pages: those never written take no memory, and freed ones go
+/// back to the system at once (not to the allocator's free lists).
+struct Unmap {
+    std::size_t bytes = 0;
+    void operator()(std::uint8_t* p) const noexcept;
+};
+using Pages = std::unique_ptr<std::uint8_t[], Unmap>;
+Pages map_pages(std::size_t bytes);
+}  // namespace detail
+
 class EmptySpace : public MacrocellLattice {
+    struct Octants;
+
 public:
     EmptySpace() = default;
     /// A scalar volume classified by `tf` under model `m`, macrocells of
@@ -223,6 +238,7 @@ public:
     }
     /// distance_ahead of every macrocell in octant o (index order), built
     /// on first use: a frame needs the octants its rays travel in only.
+    /// Valid while the Use it is read under lasts.
     [[nodiscard]] const std::uint8_t* ahead(int o) const;
     /// Per axis a and macrocell m in octant o, at a·N + index(m) (N the
     /// macrocell count): how far (macrocells, capped at kMaxDistance) the
@@ -233,6 +249,26 @@ public:
     /// m's kind. Each axis (bit a of `axes`) is built on first use: only
     /// those asked for so far are valid (simd::PacketWalk).
     [[nodiscard]] const std::uint8_t* along(int o, unsigned axes) const;
+
+    /// A stretch of work that reads the octants' tables (ahead(), along()):
+    /// they stay valid while it lasts. A Use that `releases` (a frame of
+    /// Renderer::render) first frees, where no other Use is in flight, the
+    /// tables that nothing has read since the previous releasing Use began,
+    /// so that a moving camera keeps the tables of about two frames'
+    /// octants, not of all eight (rebuilt where a later frame needs them
+    /// again; the images do not change).
+    class Use {
+    public:
+        Use(const EmptySpace& es, bool releases);
+        ~Use();
+        Use(const Use&) = delete;
+        Use& operator=(const Use&) = delete;
+
+    private:
+        std::shared_ptr<Octants> oc_;
+    };
+    /// Bytes the octants' tables hold now (built axes and octants only).
+    [[nodiscard]] std::size_t table_bytes() const;
 
     /// A box of macrocells.
     struct Box {
@@ -265,7 +301,7 @@ private:
     /// Macrocells whose node range [lo, hi] satisfies empty(lo, hi) are empty.
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
-    void build_ahead(int o, std::vector<std::uint8_t>& out) const;
+    void build_ahead(int o, std::uint8_t* out) const;
     void build_along(int o, int a, std::uint8_t* row) const;  // along(): axis a's N bytes
     /// Per macrocell of `groups` (twice the edge): 1 where the (up to) 8 of
     /// these inside it are all empty.
@@ -273,12 +309,17 @@ private:
     void find_border();
 
     std::vector<std::uint8_t> empty_;  // per macrocell: 1 where empty
-    struct Octants {                   // distance_ahead per octant, built once on demand
-        std::array<std::once_flag, 8> once;
-        std::array<std::vector<std::uint8_t>, 8> grid;
-        std::array<std::once_flag, 8> along_once;                      // along(): allocated
-        std::array<std::array<std::once_flag, 3>, 8> along_axis_once;  // along(): each axis built
-        std::array<std::unique_ptr<std::uint8_t[]>, 8> along;
+    struct Octants {  // distance_ahead and along() per octant, built on demand
+        struct Table {
+            std::mutex build;
+            std::atomic<const std::uint8_t*> ahead{nullptr};
+            std::atomic<unsigned> along_axes{0};  // bit a: along()'s axis a built
+            std::atomic<bool> read{false};        // since the last releasing Use began
+            detail::Pages ahead_pages, along_pages;
+        };
+        std::array<Table, 8> table;
+        std::mutex uses_mutex;
+        int uses = 0;  // Uses in flight
     };
     std::shared_ptr<Octants> ahead_ = std::make_shared<Octants>();  // shared by copies
     std::vector<std::uint32_t> border_;  // non-empty macrocells next to an empty one or the grid's edge

@@ -324,11 +324,15 @@ PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
 }
 
 RayResult Renderer::trace(const Ray& ray) const {
+    const EmptySpace::Use use(impl_->empty_space, false);
     return impl_->trace(ray);
 }
 
 Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
     const RenderSettings& s = impl_->s;
+    // the macrocells' tables this frame reads stay; those the last frame
+    // did not read go (EmptySpace::Use)
+    const EmptySpace::Use use(impl_->empty_space, true);
     Image img(s.width, s.height);
     if (s.depth_outputs) {
         img.depth.assign(img.rgba.size() / 4, INFINITY);
