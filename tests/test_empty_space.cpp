@@ -705,3 +705,31 @@ TEST(EmptySpace, RenderWithPixelBoundsMatchesTracingEachRay) {
             }
         }
 }
+
+// A releasing Use (a frame) frees the octants' tables nothing read since the
+// previous one began, keeps those read, frees nothing while another Use is
+// in flight, and a freed table comes back with the same bytes.
+TEST(EmptySpace, FramesFreeTheOctantTablesTheLastFrameDidNotRead) {
+    Volume v({24, 20, 16}, DType::f32, 1);
+    for (std::int64_t z = 0; z < 16; ++z)
+        for (std::int64_t y = 0; y < 20; ++y)
+            for (std::int64_t x = 0; x < 24; ++x)
+                v.set_value(x, y, z, (x - 12) * (x - 12) + (y - 9) * (y - 9) < 30 && z > 5 ? 1.0 : 0.0);
+    const EmptySpace es = EmptySpace::for_zeros(v, 2, 1);
+    ASSERT_TRUE(es.any());
+    const std::size_t n = static_cast<std::size_t>(es.dims()[0] * es.dims()[1] * es.dims()[2]);
+    const std::vector<std::uint8_t> first(es.ahead(5), es.ahead(5) + n);
+    static_cast<void>(es.along(2, 1u));
+    EXPECT_EQ(es.table_bytes(), 3 * n);         // two octants' ahead, one along axis
+    { const EmptySpace::Use frame(es, true); }  // both read before it: kept
+    EXPECT_EQ(es.table_bytes(), 3 * n);
+    {
+        const EmptySpace::Use frame(es, true);  // the last frame read nothing: all freed
+        EXPECT_EQ(es.table_bytes(), 0u);
+        EXPECT_EQ(std::vector<std::uint8_t>(es.ahead(5), es.ahead(5) + n), first);
+        const EmptySpace::Use other(es, true);  // in flight beside `frame`: frees nothing
+        EXPECT_EQ(es.table_bytes(), n);
+    }
+    { const EmptySpace::Use frame(es, true); }  // octant 5 was read: kept
+    EXPECT_EQ(es.table_bytes(), n);
+}
