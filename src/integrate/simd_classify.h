@@ -2,7 +2,7 @@
 // "SIMD"): positions, trilinear interpolation and the transfer function's
 // σ(v) and c(v) for a batch of consecutive samples, several lanes at once,
 // with runtime dispatch over the instruction sets this CPU has (Google
-// Highway: SSE2/SSSE3/SSE4, AVX2, AVX-512, or scalar emulation).
+// Highway: SSE4, AVX2, AVX-512, or its scalar fallback).
 //
 // Every lane performs exactly the scalar code's operations in the same
 // order (no fused multiply–add; the file is compiled with
