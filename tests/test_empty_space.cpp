@@ -4,8 +4,10 @@
 // and medium it applies to.
 #include <cmath>
 #include <cstring>
+#include <latch>
 #include <limits>
 #include <random>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -704,6 +706,44 @@ TEST(EmptySpace, RenderWithPixelBoundsMatchesTracingEachRay) {
                 EXPECT_EQ(differ, 0) << to_string(k) << " " << to_string(o);
             }
         }
+}
+
+// Threads that need an octant's tables at once build them together (each
+// takes planes of macrocells; ahead()'s planes wait on the rows ahead of
+// them): the tables equal those one thread builds alone, whatever axes of
+// along() each thread asks for.
+TEST(EmptySpace, ThreadsThatNeedATableAtOnceBuildItTogether) {
+    Volume v = make_volume(97, 83, 121, [](double x, double y, double z) {
+        const double a = std::sqrt((x - 60) * (x - 60) + (y - 50) * (y - 50) + (z - 70) * (z - 70));
+        const double b = std::sqrt((x - 15) * (x - 15) + (y - 20) * (y - 20) + (z - 25) * (z - 25));
+        return std::max({0.0, 1.0 - a / 21.0, 1.0 - b / 9.0, 0.6 * std::sin(0.35 * x) * std::sin(0.3 * z)});
+    });
+    const Classifier c(blob_tf(), v.smallest_spacing());
+    const EmptySpace alone = EmptySpace::for_scalar(v, c, Model::emission_absorption, 1, 1);
+    const auto n = static_cast<std::size_t>(alone.dims()[0] * alone.dims()[1] * alone.dims()[2]);
+    ASSERT_GT(alone.dims()[2], 32);
+    for (int round = 0; round < 4; ++round) {
+        const EmptySpace shared = EmptySpace::for_scalar(v, c, Model::emission_absorption, 1, 1);
+        constexpr int kThreads = 4;
+        std::latch start(kThreads);
+        std::vector<std::thread> pool;
+        for (int t = 0; t < kThreads; ++t)
+            pool.emplace_back([&, t] {
+                start.arrive_and_wait();
+                for (int k = 0; k < 8; ++k) {
+                    const int o = (k + round) % 8;  // the same octant at once
+                    if (t == 0) static_cast<void>(shared.ahead(o));
+                    static_cast<void>(shared.along(o, t == 1 ? 1u : t == 2 ? 6u : 7u));
+                }
+            });
+        for (auto& th : pool) th.join();
+        int wrong = 0;
+        for (int o = 0; o < 8; ++o) {
+            wrong += std::memcmp(shared.ahead(o), alone.ahead(o), n) != 0 ? 1 : 0;
+            wrong += std::memcmp(shared.along(o, 7), alone.along(o, 7), 3 * n) != 0 ? 1 : 0;
+        }
+        EXPECT_EQ(wrong, 0) << "round " << round;
+    }
 }
 
 // A releasing Use (a frame) frees the octants' tables nothing read since the

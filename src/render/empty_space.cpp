@@ -9,6 +9,7 @@
 #include <limits>
 #include <new>
 #include <numbers>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
@@ -282,39 +283,107 @@ std::size_t EmptySpace::table_bytes() const {
     return bytes;
 }
 
+// Whoever needs a table while it is being built helps: the build's units
+// (planes of macrocells) are handed out by a counter, and the thread that
+// finishes the last one publishes the table. The threads of a frame reach
+// a new octant's tables at about the same moment (its first tiles), so
+// without this one of them waited for the other's whole build.
+struct detail::SharedBuild {
+    std::int64_t units = 0;
+    unsigned axes = 0;  // along(): the axes built, unit u = (k-th of them, plane)
+    std::atomic<std::int64_t> next{0}, finished{0};
+    std::unique_ptr<std::atomic<std::int64_t>[]> rows;  // ahead(): rows done per plane
+
+    /// f(u) for units until none is left; true for the thread that
+    /// finished the last one.
+    template <class F>
+    bool work(F&& f) {
+        bool last = false;
+        for (std::int64_t u = next++; u < units; u = next++) {
+            f(u);
+            last = finished.fetch_add(1, std::memory_order_acq_rel) + 1 == units;
+        }
+        return last;
+    }
+};
+
 const std::uint8_t* EmptySpace::ahead(int o) const {
     Octants::Table& t = ahead_->table[static_cast<std::size_t>(o)];
     if (!t.read.load(std::memory_order_relaxed)) t.read.store(true, std::memory_order_relaxed);
     if (const std::uint8_t* p = t.ahead.load(std::memory_order_acquire)) return p;
-    const std::lock_guard lock(t.build);
-    if (const std::uint8_t* p = t.ahead.load(std::memory_order_relaxed)) return p;
-    t.ahead_pages = detail::map_pages(empty_.size());
-    build_ahead(o, t.ahead_pages.get());
-    t.ahead.store(t.ahead_pages.get(), std::memory_order_release);
-    return t.ahead_pages.get();
+    std::shared_ptr<detail::SharedBuild> job;
+    std::uint8_t* out = nullptr;
+    {
+        const std::lock_guard lock(t.build);
+        if (const std::uint8_t* p = t.ahead.load(std::memory_order_relaxed)) return p;
+        if (!t.ahead_job) {
+            t.ahead_pages = detail::map_pages(empty_.size());
+            auto j = std::make_shared<detail::SharedBuild>();
+            j->units = dims_[2];
+            j->rows = std::make_unique<std::atomic<std::int64_t>[]>(static_cast<std::size_t>(j->units));
+            t.ahead_job = std::move(j);
+        }
+        job = t.ahead_job;
+        out = t.ahead_pages.get();
+    }
+    if (job->work([&](std::int64_t zi) { build_ahead(o, out, zi, *job); })) {
+        const std::lock_guard lock(t.build);
+        t.ahead.store(out, std::memory_order_release);
+        t.ahead.notify_all();
+        t.ahead_job.reset();
+    } else {
+        while (t.ahead.load(std::memory_order_acquire) == nullptr)
+            t.ahead.wait(nullptr, std::memory_order_acquire);
+    }
+    return out;
 }
 
 const std::uint8_t* EmptySpace::along(int o, unsigned axes) const {
     static_cast<void>(ahead(o));  // built (build_along reads it) and marked read
     Octants::Table& t = ahead_->table[static_cast<std::size_t>(o)];
-    const unsigned built = t.along_axes.load(std::memory_order_acquire);
-    if (built != 0 && (built & axes) == axes) return t.along_pages.get();
-    const std::lock_guard lock(t.build);
-    const std::size_t n = empty_.size();
-    // not written where no axis is built: only the axes built are resident
-    if (!t.along_pages) t.along_pages = detail::map_pages(3 * n);
-    for (int a = 0; a < 3; ++a) {
-        const unsigned bit = 1u << a;
-        if ((axes & bit) != 0 && (t.along_axes.load(std::memory_order_relaxed) & bit) == 0) {
-            build_along(o, a, t.along_pages.get() + static_cast<std::size_t>(a) * n);
-            t.along_axes.fetch_or(bit, std::memory_order_release);
+    const std::int64_t n = static_cast<std::int64_t>(empty_.size()), planes = dims_[2];
+    for (;;) {  // until a build covers every axis asked for
+        const unsigned built = t.along_axes.load(std::memory_order_acquire);
+        if (built != 0 && (built & axes) == axes) return t.along_pages.get();
+        std::shared_ptr<detail::SharedBuild> job;
+        std::uint8_t* pages = nullptr;
+        {
+            const std::lock_guard lock(t.build);
+            // not written where no axis is built: only the axes built are resident
+            if (!t.along_pages) t.along_pages = detail::map_pages(3 * static_cast<std::size_t>(n));
+            pages = t.along_pages.get();
+            const unsigned now = t.along_axes.load(std::memory_order_relaxed);
+            if ((now & axes) == axes) return pages;
+            if (!t.along_job) {
+                auto j = std::make_shared<detail::SharedBuild>();
+                j->axes = axes & ~now;
+                j->units = std::popcount(j->axes) * planes;
+                t.along_job = std::move(j);
+            }
+            job = t.along_job;
+        }
+        if (job->work([&](std::int64_t u) {
+                unsigned rest = job->axes;  // the (u / planes)-th axis of the build
+                for (std::int64_t k = u / planes; k > 0; --k) rest &= rest - 1;
+                const int a = std::countr_zero(rest);
+                build_along(o, a, pages + a * n, u % planes);
+            })) {
+            const std::lock_guard lock(t.build);
+            t.along_axes.fetch_or(job->axes, std::memory_order_release);
+            t.along_axes.notify_all();
+            t.along_job.reset();
+        } else {
+            unsigned v = 0;
+            while (((v = t.along_axes.load(std::memory_order_acquire)) & job->axes) != job->axes)
+                t.along_axes.wait(v, std::memory_order_acquire);
         }
     }
-    return t.along_pages.get();
 }
 
-void EmptySpace::build_along(int o, int a, std::uint8_t* row) const {
-    const std::uint8_t* dist = ahead(o);
+void EmptySpace::build_along(int o, int a, std::uint8_t* row, std::int64_t z) const {
+    // published before any along() build starts
+    const std::uint8_t* dist =
+        ahead_->table[static_cast<std::size_t>(o)].ahead.load(std::memory_order_acquire);
     const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
     const auto& d = dims_;
     const std::int64_t s = (o >> a & 1) != 0 ? -1 : 1;
@@ -325,86 +394,92 @@ void EmptySpace::build_along(int o, int a, std::uint8_t* row) const {
     // without branches (`&` on bools): a hop that leaves the grid or meets
     // the other kind or a shorter box stops the joining (and stays on the
     // cell it was on)
-    for (std::int64_t z = 0; z < d[2]; ++z)
-        for (std::int64_t y = 0; y < d[1]; ++y) {
-            const std::int64_t base = d[0] * (y + d[1] * z);
-            for (std::int64_t x = 0; x < d[0]; ++x) {
-                const std::int64_t i = base + x;
-                const std::int64_t c = a == 0 ? x : a == 1 ? y : z;
-                const int D = dist[i];
-                const std::uint8_t k = kind[i];
-                const std::int64_t at1 = c + s * D;
-                bool ok = (D < kMaxDistance) & inside(at1);
-                const std::int64_t j1 = i + (ok ? s * D * stride : 0);
-                const int e1 = dist[j1];
-                ok = ok & (kind[j1] == k) & (e1 >= D);
-                const int len1 = ok ? std::min(D + e1, kMaxDistance) : D;
-                const std::int64_t at2 = at1 + s * e1;
-                ok = ok & (len1 < kMaxDistance) & inside(at2);
-                const std::int64_t j2 = j1 + (ok ? s * e1 * stride : 0);
-                const int e2 = dist[j2];
-                ok = ok & (kind[j2] == k) & (e2 >= D);
-                row[i] = static_cast<std::uint8_t>(ok ? std::min(len1 + e2, kMaxDistance) : len1);
-            }
+    for (std::int64_t y = 0; y < d[1]; ++y) {
+        const std::int64_t base = d[0] * (y + d[1] * z);
+        for (std::int64_t x = 0; x < d[0]; ++x) {
+            const std::int64_t i = base + x;
+            const std::int64_t c = a == 0 ? x : a == 1 ? y : z;
+            const int D = dist[i];
+            const std::uint8_t k = kind[i];
+            const std::int64_t at1 = c + s * D;
+            bool ok = (D < kMaxDistance) & inside(at1);
+            const std::int64_t j1 = i + (ok ? s * D * stride : 0);
+            const int e1 = dist[j1];
+            ok = ok & (kind[j1] == k) & (e1 >= D);
+            const int len1 = ok ? std::min(D + e1, kMaxDistance) : D;
+            const std::int64_t at2 = at1 + s * e1;
+            ok = ok & (len1 < kMaxDistance) & inside(at2);
+            const std::int64_t j2 = j1 + (ok ? s * e1 * stride : 0);
+            const int e2 = dist[j2];
+            ok = ok & (kind[j2] == k) & (e2 >= D);
+            row[i] = static_cast<std::uint8_t>(ok ? std::min(len1 + e2, kMaxDistance) : len1);
         }
+    }
 }
 
 // One pass for octant o, from the far corner of that octant back: the box
 // reaching r ahead of m is m and the boxes reaching r − 1 ahead of its 7
 // neighbours ahead, so D(m) = 1 + min over them, where a neighbour of the
 // other kind (empty or not) counts 0; the grid's outside does not stop a
-// box, which is clipped.
-void EmptySpace::build_ahead(int o, std::uint8_t* out) const {
+// box, which is clipped. A plane's row reads the row ahead of it in its own
+// plane and the two in the plane ahead, so the planes go in a pipeline: row
+// yi of plane zi waits until plane zi − 1 has done its rows 0 … yi.
+void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job) const {
     const auto& d = dims_;
     const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
     std::uint8_t* ahead = out;                 // every byte written, rows ahead first
     const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
     std::vector<std::uint8_t> best(static_cast<std::size_t>(d[0]));
-    for (std::int64_t zi = 0; zi < d[2]; ++zi)
-        for (std::int64_t yi = 0; yi < d[1]; ++yi) {
-            // rows ahead first: against the octant's direction
-            const std::int64_t my = s[1] > 0 ? d[1] - 1 - yi : yi, mz = s[2] > 0 ? d[2] - 1 - zi : zi;
-            const std::int64_t base = d[0] * (my + d[1] * mz);
-            const std::uint8_t* kr = kind + base;
-            std::uint8_t* ar = ahead + base;
-            std::fill(best.begin(), best.end(), static_cast<std::uint8_t>(kMaxDistance));
-            // the 6 neighbours ahead in the rows ahead (bit 0 of e: along x,
-            // 1: y, 2: z), which exist unless this row lies on that face, a
-            // whole row at a time
-            for (int e = 2; e < 8; ++e) {
-                if (((e & 2) != 0 && yi == 0) || ((e & 4) != 0 && zi == 0)) continue;
-                const std::int64_t dx = (e & 1) != 0 ? s[0] : 0;
-                const std::int64_t off =
-                    dx + ((e & 2) != 0 ? s[1] * d[0] : 0) + ((e & 4) != 0 ? s[2] * d[0] * d[1] : 0);
-                const std::uint8_t* kn = kr + off;
-                const std::uint8_t* an = ar + off;
-                std::uint8_t* b = best.data();
-                // the cells whose neighbour along x is inside the row (best
-                // is not the volume's: no dependence between iterations)
+    const std::atomic<std::int64_t>* before = zi > 0 ? &job.rows[static_cast<std::size_t>(zi - 1)] : nullptr;
+    std::atomic<std::int64_t>& done = job.rows[static_cast<std::size_t>(zi)];
+    for (std::int64_t yi = 0; yi < d[1]; ++yi) {
+        if (before != nullptr)
+            for (int spin = 0; before->load(std::memory_order_acquire) <= yi; ++spin)
+                if (spin >= 64) std::this_thread::yield();
+        // rows ahead first: against the octant's direction
+        const std::int64_t my = s[1] > 0 ? d[1] - 1 - yi : yi, mz = s[2] > 0 ? d[2] - 1 - zi : zi;
+        const std::int64_t base = d[0] * (my + d[1] * mz);
+        const std::uint8_t* kr = kind + base;
+        std::uint8_t* ar = ahead + base;
+        std::fill(best.begin(), best.end(), static_cast<std::uint8_t>(kMaxDistance));
+        // the 6 neighbours ahead in the rows ahead (bit 0 of e: along x,
+        // 1: y, 2: z), which exist unless this row lies on that face, a
+        // whole row at a time
+        for (int e = 2; e < 8; ++e) {
+            if (((e & 2) != 0 && yi == 0) || ((e & 4) != 0 && zi == 0)) continue;
+            const std::int64_t dx = (e & 1) != 0 ? s[0] : 0;
+            const std::int64_t off =
+                dx + ((e & 2) != 0 ? s[1] * d[0] : 0) + ((e & 4) != 0 ? s[2] * d[0] * d[1] : 0);
+            const std::uint8_t* kn = kr + off;
+            const std::uint8_t* an = ar + off;
+            std::uint8_t* b = best.data();
+            // the cells whose neighbour along x is inside the row (best
+            // is not the volume's: no dependence between iterations)
 #pragma GCC ivdep
-                for (std::int64_t x = dx < 0 ? 1 : 0, x1 = dx > 0 ? d[0] - 1 : d[0]; x < x1; ++x) {
-                    // a neighbour of the other kind stops the box (0xFF
-                    // where of one kind: no branch, so that it vectorizes)
-                    const auto same = static_cast<std::uint8_t>(0u - static_cast<unsigned>(kn[x] == kr[x]));
-                    b[x] = std::min(b[x], static_cast<std::uint8_t>(an[x] & same));
-                }
-            }
-            // then along the row, in the octant's order backwards: the
-            // neighbour along x (all but the first cell have one)
-            const std::uint8_t* b = best.data();
-            const std::int64_t last = d[0] - 1;
-            const auto cell = [&](std::int64_t x, int b_x, std::int64_t next) {
-                const int v = std::min(b_x, kr[next] == kr[x] ? static_cast<int>(ar[next]) : 0);
-                ar[x] = static_cast<std::uint8_t>(std::min(v + 1, kMaxDistance));
-            };
-            if (s[0] > 0) {
-                ar[last] = static_cast<std::uint8_t>(std::min(b[last] + 1, kMaxDistance));
-                for (std::int64_t x = last - 1; x >= 0; --x) cell(x, b[x], x + 1);
-            } else {
-                ar[0] = static_cast<std::uint8_t>(std::min(b[0] + 1, kMaxDistance));
-                for (std::int64_t x = 1; x <= last; ++x) cell(x, b[x], x - 1);
+            for (std::int64_t x = dx < 0 ? 1 : 0, x1 = dx > 0 ? d[0] - 1 : d[0]; x < x1; ++x) {
+                // a neighbour of the other kind stops the box (0xFF
+                // where of one kind: no branch, so that it vectorizes)
+                const auto same = static_cast<std::uint8_t>(0u - static_cast<unsigned>(kn[x] == kr[x]));
+                b[x] = std::min(b[x], static_cast<std::uint8_t>(an[x] & same));
             }
         }
+        // then along the row, in the octant's order backwards: the
+        // neighbour along x (all but the first cell have one)
+        const std::uint8_t* b = best.data();
+        const std::int64_t last = d[0] - 1;
+        const auto cell = [&](std::int64_t x, int b_x, std::int64_t next) {
+            const int v = std::min(b_x, kr[next] == kr[x] ? static_cast<int>(ar[next]) : 0);
+            ar[x] = static_cast<std::uint8_t>(std::min(v + 1, kMaxDistance));
+        };
+        if (s[0] > 0) {
+            ar[last] = static_cast<std::uint8_t>(std::min(b[last] + 1, kMaxDistance));
+            for (std::int64_t x = last - 1; x >= 0; --x) cell(x, b[x], x + 1);
+        } else {
+            ar[0] = static_cast<std::uint8_t>(std::min(b[0] + 1, kMaxDistance));
+            for (std::int64_t x = 1; x <= last; ++x) cell(x, b[x], x - 1);
+        }
+        done.store(yi + 1, std::memory_order_release);
+    }
 }
 
 PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,

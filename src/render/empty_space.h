@@ -151,6 +151,9 @@ struct Unmap {
 };
 using Pages = std::unique_ptr<std::uint8_t[], Unmap>;
 Pages map_pages(std::size_t bytes);
+/// A table's build shared by the threads that need the table at once
+/// (empty_space.cpp).
+struct SharedBuild;
 }  // namespace detail
 
 class EmptySpace : public MacrocellLattice {
@@ -301,21 +304,27 @@ private:
     /// Macrocells whose node range [lo, hi] satisfies empty(lo, hi) are empty.
     template <class Empty>
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
-    void build_ahead(int o, std::uint8_t* out) const;
-    void build_along(int o, int a, std::uint8_t* row) const;  // along(): axis a's N bytes
+    /// ahead()'s plane of macrocells zi (counted from the octant's far
+    /// side) into `out`, row by row once `job`'s plane zi − 1 has done the
+    /// rows ahead of each.
+    void build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job) const;
+    /// along()'s axis a (its N bytes at `row`) on the macrocells of plane z.
+    void build_along(int o, int a, std::uint8_t* row, std::int64_t z) const;
     /// Per macrocell of `groups` (twice the edge): 1 where the (up to) 8 of
     /// these inside it are all empty.
     [[nodiscard]] std::vector<std::uint8_t> groups_empty(const MacrocellLattice& groups) const;
     void find_border();
 
     std::vector<std::uint8_t> empty_;  // per macrocell: 1 where empty
-    struct Octants {  // distance_ahead and along() per octant, built on demand
+    struct Octants {                   // distance_ahead and along() per octant, built on demand
         struct Table {
             std::mutex build;
             std::atomic<const std::uint8_t*> ahead{nullptr};
             std::atomic<unsigned> along_axes{0};  // bit a: along()'s axis a built
             std::atomic<bool> read{false};        // since the last releasing Use began
             detail::Pages ahead_pages, along_pages;
+            // the builds in flight, which threads that need the table join
+            std::shared_ptr<detail::SharedBuild> ahead_job, along_job;
         };
         std::array<Table, 8> table;
         std::mutex uses_mutex;
