@@ -11,6 +11,7 @@
 #include "fathom/preintegration.h"
 #include "fathom/render.h"
 
+#include "core/parallel.h"
 #include "integrate/alpha.h"
 #include "integrate/preintegrated.h"
 #include "integrate/simd_preint.h"
@@ -260,9 +261,32 @@ void pixel_bounds(benchmark::State& state) {
         benchmark::DoNotOptimize(es.pixel_bounds(cam, 512, 512, vol.axes(), vol.origin(), threads));
 }
 
+// The octants' tables (EmptySpace::ahead and along's three axes) of all
+// eight octants for the bundled chest CT's bone frame (its 2³ macrocells),
+// built by range(0) threads that ask for the same octant at once, as a
+// frame's threads do (the builds are shared); the classification is not
+// timed.
+void octant_tables(benchmark::State& state) {
+    const fathom::Volume& vol = chest_ct();
+    const auto tf = fathom::TransferFunction::preset("ct-bone", vol.value_range());
+    const fathom::Classifier c(tf, vol.smallest_spacing());
+    const int threads = static_cast<int>(state.range(0));
+    for (auto _ : state) {
+        state.PauseTiming();
+        const auto es =
+            fathom::EmptySpace::for_scalar(vol, c, fathom::Model::emission_absorption, 1, threads);
+        state.ResumeTiming();
+        fathom::parallel_blocks(static_cast<std::size_t>(threads), threads,
+                                [&](std::size_t, std::size_t, int) {
+                                    for (int o = 0; o < 8; ++o) benchmark::DoNotOptimize(es.along(o, 7u));
+                                });
+    }
+}
+
 }  // namespace
 
 BENCHMARK(pixel_bounds)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(octant_tables)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(roofline_trilinear);
 BENCHMARK(roofline_trilinear_simd);
 BENCHMARK_TEMPLATE(roofline_ray, fathom::IntegratorKind::alpha)->Name("roofline_ray/alpha");
