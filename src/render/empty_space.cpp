@@ -326,7 +326,10 @@ const std::uint8_t* EmptySpace::ahead(int o) const {
         job = t.ahead_job;
         out = t.ahead_pages.get();
     }
-    if (job->work([&](std::int64_t zi) { build_ahead(o, out, zi, *job); })) {
+    // the one allocation before any plane is taken: nothing inside a
+    // build throws, so no thread waits for a plane that never comes
+    std::vector<std::uint8_t> best(static_cast<std::size_t>(dims_[0]));
+    if (job->work([&](std::int64_t zi) { build_ahead(o, out, zi, *job, best.data()); })) {
         const std::lock_guard lock(t.build);
         t.ahead.store(out, std::memory_order_release);
         t.ahead.notify_all();
@@ -424,12 +427,12 @@ void EmptySpace::build_along(int o, int a, std::uint8_t* row, std::int64_t z) co
 // box, which is clipped. A plane's row reads the row ahead of it in its own
 // plane and the two in the plane ahead, so the planes go in a pipeline: row
 // yi of plane zi waits until plane zi − 1 has done its rows 0 … yi.
-void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job) const {
+void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job,
+                             std::uint8_t* best) const {
     const auto& d = dims_;
     const std::int64_t s[3] = {(o & 1) != 0 ? -1 : 1, (o & 2) != 0 ? -1 : 1, (o & 4) != 0 ? -1 : 1};
     std::uint8_t* ahead = out;                 // every byte written, rows ahead first
     const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
-    std::vector<std::uint8_t> best(static_cast<std::size_t>(d[0]));
     const std::atomic<std::int64_t>* before = zi > 0 ? &job.rows[static_cast<std::size_t>(zi - 1)] : nullptr;
     std::atomic<std::int64_t>& done = job.rows[static_cast<std::size_t>(zi)];
     for (std::int64_t yi = 0; yi < d[1]; ++yi) {
@@ -441,7 +444,7 @@ void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::
         const std::int64_t base = d[0] * (my + d[1] * mz);
         const std::uint8_t* kr = kind + base;
         std::uint8_t* ar = ahead + base;
-        std::fill(best.begin(), best.end(), static_cast<std::uint8_t>(kMaxDistance));
+        std::fill(best, best + d[0], static_cast<std::uint8_t>(kMaxDistance));
         // the 6 neighbours ahead in the rows ahead (bit 0 of e: along x,
         // 1: y, 2: z), which exist unless this row lies on that face, a
         // whole row at a time
@@ -452,7 +455,7 @@ void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::
                 dx + ((e & 2) != 0 ? s[1] * d[0] : 0) + ((e & 4) != 0 ? s[2] * d[0] * d[1] : 0);
             const std::uint8_t* kn = kr + off;
             const std::uint8_t* an = ar + off;
-            std::uint8_t* b = best.data();
+            std::uint8_t* b = best;
             // the cells whose neighbour along x is inside the row (best
             // is not the volume's: no dependence between iterations)
 #pragma GCC ivdep
@@ -465,7 +468,7 @@ void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::
         }
         // then along the row, in the octant's order backwards: the
         // neighbour along x (all but the first cell have one)
-        const std::uint8_t* b = best.data();
+        const std::uint8_t* b = best;
         const std::int64_t last = d[0] - 1;
         const auto cell = [&](std::int64_t x, int b_x, std::int64_t next) {
             const int v = std::min(b_x, kr[next] == kr[x] ? static_cast<int>(ar[next]) : 0);

@@ -306,8 +306,9 @@ private:
     static EmptySpace from_ranges(const Volume& v, int shift, int threads, Empty&& empty);
     /// ahead()'s plane of macrocells zi (counted from the octant's far
     /// side) into `out`, row by row once `job`'s plane zi − 1 has done the
-    /// rows ahead of each.
-    void build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job) const;
+    /// rows ahead of each; `best` holds a row's bytes (scratch).
+    void build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job,
+                     std::uint8_t* best) const;
     /// along()'s axis a (its N bytes at `row`) on the macrocells of plane z.
     void build_along(int o, int a, std::uint8_t* row, std::int64_t z) const;
     /// Per macrocell of `groups` (twice the edge): 1 where the (up to) 8 of
