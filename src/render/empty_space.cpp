@@ -1,6 +1,7 @@
 #include "render/empty_space.h"
 
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -244,6 +245,19 @@ void detail::Unmap::operator()(std::uint8_t* p) const noexcept {
     if (p != nullptr) munmap(p, bytes);
 }
 
+void detail::populate(std::uint8_t* p, std::size_t bytes) {
+#ifdef MADV_POPULATE_WRITE
+    static const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+    const auto begin = reinterpret_cast<std::uintptr_t>(p) & ~(page - 1),
+               end = (reinterpret_cast<std::uintptr_t>(p) + bytes + page - 1) & ~(page - 1);
+    // an older kernel refuses (EINVAL): the pages then come with their first writes
+    static_cast<void>(madvise(reinterpret_cast<void*>(begin), end - begin, MADV_POPULATE_WRITE));
+#else
+    static_cast<void>(p);
+    static_cast<void>(bytes);
+#endif
+}
+
 detail::Pages detail::map_pages(std::size_t bytes) {
     bytes = std::max<std::size_t>(bytes, 1);
     void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
@@ -329,7 +343,12 @@ const std::uint8_t* EmptySpace::ahead(int o) const {
     // the one allocation before any plane is taken: nothing inside a
     // build throws, so no thread waits for a plane that never comes
     std::vector<std::uint8_t> best(static_cast<std::size_t>(dims_[0]));
-    if (job->work([&](std::int64_t zi) { build_ahead(o, out, zi, *job, best.data()); })) {
+    const auto plane = static_cast<std::size_t>(dims_[0] * dims_[1]);
+    const bool down = (o & 4) != 0;  // the sweep's plane zi
+    if (job->work([&](std::int64_t zi) {
+            detail::populate(out + plane * static_cast<std::size_t>(down ? zi : dims_[2] - 1 - zi), plane);
+            build_ahead(o, out, zi, *job, best.data());
+        })) {
         const std::lock_guard lock(t.build);
         t.ahead.store(out, std::memory_order_release);
         t.ahead.notify_all();
@@ -369,7 +388,9 @@ const std::uint8_t* EmptySpace::along(int o, unsigned axes) const {
                 unsigned rest = job->axes;  // the (u / planes)-th axis of the build
                 for (std::int64_t k = u / planes; k > 0; --k) rest &= rest - 1;
                 const int a = std::countr_zero(rest);
-                build_along(o, a, pages + a * n, u % planes);
+                const std::int64_t z = u % planes, plane = dims_[0] * dims_[1];
+                detail::populate(pages + a * n + z * plane, static_cast<std::size_t>(plane));
+                build_along(o, a, pages + a * n, z);
             })) {
             const std::lock_guard lock(t.build);
             t.along_axes.fetch_or(job->axes, std::memory_order_release);
