@@ -343,12 +343,7 @@ const std::uint8_t* EmptySpace::ahead(int o) const {
     // the one allocation before any plane is taken: nothing inside a
     // build throws, so no thread waits for a plane that never comes
     std::vector<std::uint8_t> best(static_cast<std::size_t>(dims_[0]));
-    const auto plane = static_cast<std::size_t>(dims_[0] * dims_[1]);
-    const bool down = (o & 4) != 0;  // the sweep's plane zi
-    if (job->work([&](std::int64_t zi) {
-            detail::populate(out + plane * static_cast<std::size_t>(down ? zi : dims_[2] - 1 - zi), plane);
-            build_ahead(o, out, zi, *job, best.data());
-        })) {
+    if (job->work([&](std::int64_t zi) { build_ahead(o, out, zi, *job, best.data()); })) {
         const std::lock_guard lock(t.build);
         t.ahead.store(out, std::memory_order_release);
         t.ahead.notify_all();
@@ -388,9 +383,7 @@ const std::uint8_t* EmptySpace::along(int o, unsigned axes) const {
                 unsigned rest = job->axes;  // the (u / planes)-th axis of the build
                 for (std::int64_t k = u / planes; k > 0; --k) rest &= rest - 1;
                 const int a = std::countr_zero(rest);
-                const std::int64_t z = u % planes, plane = dims_[0] * dims_[1];
-                detail::populate(pages + a * n + z * plane, static_cast<std::size_t>(plane));
-                build_along(o, a, pages + a * n, z);
+                build_along(o, a, pages + a * n, u % planes);
             })) {
             const std::lock_guard lock(t.build);
             t.along_axes.fetch_or(job->axes, std::memory_order_release);
@@ -418,6 +411,7 @@ void EmptySpace::build_along(int o, int a, std::uint8_t* row, std::int64_t z) co
     // without branches (`&` on bools): a hop that leaves the grid or meets
     // the other kind or a shorter box stops the joining (and stays on the
     // cell it was on)
+    detail::populate(row + d[0] * d[1] * z, static_cast<std::size_t>(d[0] * d[1]));
     for (std::int64_t y = 0; y < d[1]; ++y) {
         const std::int64_t base = d[0] * (y + d[1] * z);
         for (std::int64_t x = 0; x < d[0]; ++x) {
@@ -456,12 +450,14 @@ void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::
     const std::uint8_t* kind = empty_.data();  // 0 or 1: compared as bytes
     const std::atomic<std::int64_t>* before = zi > 0 ? &job.rows[static_cast<std::size_t>(zi - 1)] : nullptr;
     std::atomic<std::int64_t>& done = job.rows[static_cast<std::size_t>(zi)];
+    const std::int64_t mz = s[2] > 0 ? d[2] - 1 - zi : zi;  // planes ahead first
+    detail::populate(ahead + d[0] * d[1] * mz, static_cast<std::size_t>(d[0] * d[1]));
     for (std::int64_t yi = 0; yi < d[1]; ++yi) {
         if (before != nullptr)
             for (int spin = 0; before->load(std::memory_order_acquire) <= yi; ++spin)
                 if (spin >= 64) std::this_thread::yield();
         // rows ahead first: against the octant's direction
-        const std::int64_t my = s[1] > 0 ? d[1] - 1 - yi : yi, mz = s[2] > 0 ? d[2] - 1 - zi : zi;
+        const std::int64_t my = s[1] > 0 ? d[1] - 1 - yi : yi;
         const std::int64_t base = d[0] * (my + d[1] * mz);
         const std::uint8_t* kr = kind + base;
         std::uint8_t* ar = ahead + base;

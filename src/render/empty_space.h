@@ -313,7 +313,8 @@ private:
     /// rows ahead of each; `best` holds a row's bytes (scratch).
     void build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::SharedBuild& job,
                      std::uint8_t* best) const;
-    /// along()'s axis a (its N bytes at `row`) on the macrocells of plane z.
+    /// along()'s axis a (its N bytes at `row`) on the macrocells of plane z
+    /// (that plane's pages faulted in first, as build_ahead's).
     void build_along(int o, int a, std::uint8_t* row, std::int64_t z) const;
     /// Per macrocell of `groups` (twice the edge): 1 where the (up to) 8 of
     /// these inside it are all empty.
