@@ -1097,13 +1097,22 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     auto push_step = [&](std::size_t l, std::size_t m, const double(*at)[kPacketLanesMax],
                          const double(*values)[kPacketGroups * kBatch]) {
         const double j0 = at[0][l];
-        const int c = P.count[l];
-        if (at[m - 1][l] == j0 + static_cast<double>(m - 1) && (c == 0 || j0 == P.last[l] + 1.0) &&
-            c + static_cast<int>(m) <= static_cast<int>(kBatch) + 1) {  // in a row, into the window
-            for (std::size_t q = 0; q < m; ++q) P.ends[l][c + static_cast<int>(q)] = values[q][l];
-            P.count[l] = c + static_cast<int>(m);
-            P.last[l] = j0 + static_cast<double>(m - 1);
-            if (P.count[l] == static_cast<int>(kBatch) + 1) flush(l, true);
+        if (at[m - 1][l] == j0 + static_cast<double>(m - 1) && (P.count[l] == 0 || j0 == P.last[l] + 1.0)) {
+            // in a row, on from the window's last end: push's appends, a
+            // full window flushed (its last end carried) where it fills
+            constexpr int kFull = static_cast<int>(kBatch) + 1;
+            for (std::size_t q = 0; q < m;) {
+                const int c = P.count[l];
+                const std::size_t take = std::min(m - q, static_cast<std::size_t>(kFull - c));
+                for (std::size_t k = 0; k < take; ++k) P.ends[l][c + static_cast<int>(k)] = values[q + k][l];
+                P.count[l] = c + static_cast<int>(take);
+                q += take;
+                P.last[l] = j0 + static_cast<double>(q - 1);
+                if (P.count[l] == kFull) {
+                    flush(l, true);
+                    if (P.stopped[l] != 0.0) return;
+                }
+            }
             return;
         }
         for (std::size_t q = 0; q < m && P.stopped[l] == 0.0; ++q) push(l, at[q][l], values[q][l]);

@@ -324,16 +324,13 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
     }
     const V k0 = f != nullptr ? hn::Set(d, f->knots.front()) : zero, flat = hn::Set(d, preint::kFlatRamp);
     for (std::size_t b = 0; b < segments; b += N) {
-        HWY_ALIGN double wanted[hn::MaxLanes(d)];
-        bool any = false;
-        for (std::size_t l = 0; l < N; ++l) {
-            const bool w = b + l < segments && ((skip >> (b + l)) & 1u) == 0;
-            wanted[l] = w ? 1.0 : 0.0;
-            any = any || w;
-        }
-        if (!any) continue;
+        // the segments b … b + N − 1 wanted: not skipped, before the last
+        const std::size_t in = std::min(N, segments - b);
+        const std::uint32_t lanes = (std::uint32_t{1} << in) - 1u;  // in ≤ 8
+        const auto wanted = static_cast<std::uint8_t>(~(skip >> b) & lanes);
+        if (wanted == 0) continue;
         const V vf = hn::LoadU(d, ends + b), vb = hn::LoadU(d, ends + b + 1);
-        const M ok = hn::And(hn::Eq(hn::Load(d, wanted), one), hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
+        const M ok = hn::And(hn::LoadMaskBits(d, &wanted), hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
         Segments r;
         M pieces = ok;  // the lanes that take the ramp's pieces
         if (f != nullptr) {
