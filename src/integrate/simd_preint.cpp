@@ -55,10 +55,11 @@ struct Piece {
     V k0, inv, y0[3], y1[3], first[3], last[3];
     M any_below, any_above;
 
-    Piece(D d, const FlatFunction& f, V v) {
+    Piece(D d, const FlatFunction& f, V v) : Piece(d, f, Count<false>(d, f.knots, v)) {}
+    /// With p, the number of f's knots ≤ v per lane.
+    Piece(D d, const FlatFunction& f, VI p) {
         const DI di;
         const auto n = static_cast<std::int64_t>(f.knots.size());
-        const VI p = Count<false>(d, f.knots, v);
         const VI lo = hn::Max(hn::Sub(p, hn::Set(di, 1)), hn::Zero(di)), hi = hn::Min(p, hn::Set(di, n - 1));
         if (f.knots.size() <= FlatFunction::kTable && f.knots.size() <= hn::Lanes(d)) {
             // by lane permutation of the padded table: the same values
@@ -192,8 +193,8 @@ struct Segments {
 
 /// The lanes' segments from their ramp pieces (preintegrate_scalar's
 /// RampIntegral over for_each_ramp_piece).
-HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, bool full, V vdelta, V vf, V vb,
-                                   M ok) {
+HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, bool shared, Model model, bool full, V vdelta,
+                                   V vf, V vb, M ok) {
     const DI di;
     const std::vector<double>& breaks = *src.breaks;
     const auto nb = static_cast<std::int64_t>(breaks.size());
@@ -243,9 +244,13 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, Model model, boo
         // for_each_ramp_piece's piece(l0, l1)
         const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
         const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
-        const Piece ps(d, *src.sigma, vm), pc(d, *src.color, vm);
-        V s0 = ps.at(0, ps.weight(v0)), s1 = ps.at(0, ps.weight(v1));
-        const V w0 = pc.weight(v0), w1 = pc.weight(v1);
+        // (σ's knots shared by c: one count, the same positions)
+        const VI at_vm = Count<false>(d, src.sigma->knots, vm);
+        const Piece ps(d, *src.sigma, at_vm),
+            pc = shared ? Piece(d, *src.color, at_vm) : Piece(d, *src.color, vm);
+        const V ws0 = ps.weight(v0), ws1 = ps.weight(v1);
+        V s0 = ps.at(0, ws0), s1 = ps.at(0, ws1);
+        const V w0 = shared ? ws0 : pc.weight(v0), w1 = shared ? ws1 : pc.weight(v1);
         V a[3], bq[3], cq[3];
         for (int k = 0; k < 3; ++k) {
             const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
@@ -323,6 +328,8 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
         for (auto& g : G) hn::Store(zero, d, g + e);
     }
     const V k0 = f != nullptr ? hn::Set(d, f->knots.front()) : zero, flat = hn::Set(d, preint::kFlatRamp);
+    // σ and c with the same knots (and so the same inverse widths)
+    const bool shared = src.sigma->knots == src.color->knots && src.sigma->inv == src.color->inv;
     for (std::size_t b = 0; b < segments; b += N) {
         // the segments b … b + N − 1 wanted: not skipped, before the last
         const std::size_t in = std::min(N, segments - b);
@@ -356,13 +363,13 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
                                   zero)
                         : zero;
             if (!hn::AllFalse(d, pieces)) {
-                const Segments p = RampSegments(d, src, model, full, vdelta, vf, vb, pieces);
+                const Segments p = RampSegments(d, src, shared, model, full, vdelta, vf, vb, pieces);
                 r.T = hn::IfThenElse(pieces, p.T, r.T);
                 for (std::size_t k = 0; k < 3; ++k) r.E[k] = hn::IfThenElse(pieces, p.E[k], r.E[k]);
                 r.scalar = hn::Or(hn::AndNot(pieces, r.scalar), hn::And(pieces, p.scalar));
             }
         } else {
-            r = RampSegments(d, src, model, full, vdelta, vf, vb, ok);
+            r = RampSegments(d, src, shared, model, full, vdelta, vf, vb, ok);
         }
         hn::Store(r.T, d, out.transmittance + b);
         for (int k = 0; k < 3; ++k) hn::Store(r.E[k], d, out.radiance[k] + b);
