@@ -172,6 +172,7 @@ void roofline_ray(benchmark::State& state) {
     const fathom::Rgb bg{0, 0, 0};
     const auto fs = fathom::simd::flatten(c.sigma_function()), fc = fathom::simd::flatten(c.color_function());
     fathom::simd::BatchSource batch{v.bytes(), v.dtype(), 64, 64, 64, &fs, &fc};
+    batch.shared_knots = fathom::simd::same_knots(fs, fc);
     batch.zero_below = fathom::zero_below(c, fathom::Model::emission_absorption);
     batch.breaks = &c.breakpoints();
     batch.integrals = &c.integrals();
@@ -211,6 +212,7 @@ void preint_segments(benchmark::State& state) {
     const auto fs = fathom::simd::flatten(c.sigma_function()), fc = fathom::simd::flatten(c.color_function());
     const auto& n = vol.dims();
     fathom::simd::BatchSource src{vol.bytes(), vol.dtype(), n[0], n[1], n[2], &fs, &fc};
+    src.shared_knots = fathom::simd::same_knots(fs, fc);
     src.zero_below = fathom::zero_below(c, fathom::Model::emission_absorption);
     src.breaks = &c.breakpoints();
     constexpr int kEnds = fathom::simd::kBatch + 1;

@@ -311,6 +311,7 @@ TEST(Simd, InactiveBlocksGiveTheBatchesOfFullClassification) {
         EXPECT_GT(set, 50) << dtype_name(type);
         EXPECT_GT(clear, 50) << dtype_name(type);
         simd::BatchSource without{v.bytes(), type, n[0], n[1], n[2], &fs, &fc, ev};
+        without.shared_knots = simd::same_knots(fs, fc);
         simd::BatchSource with = without;
         with.active = bits.data();
         std::uniform_real_distribution<double> pos(0.0, 1.0), dir(-1.0, 1.0);
@@ -382,6 +383,7 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
         simd::BatchSource src;
         src.sigma = &fs;
         src.color = &fc;
+        src.shared_knots = simd::same_knots(fs, fc);
         src.breaks = &knots;
         src.associated = c.associated();
         src.integrals = &c.integrals();
@@ -535,6 +537,7 @@ TEST(Simd, SegmentRulesMatchTheScalarRules) {
         for (auto model : {Model::emission_absorption, Model::absorption, Model::emission})
             for (auto rule : {simd::PointRule::alpha, simd::PointRule::riemann}) {
                 simd::BatchSource src{v.bytes(), DType::f32, 6, 5, 4, &fs, &fc, zero_below(c, model)};
+                src.shared_knots = simd::same_knots(fs, fc);
                 src.associated = c.associated();
                 src.rule = rule;
                 src.model = model;

@@ -75,8 +75,7 @@ HWY_INLINE void on_knot_piece(D d, const FlatFunction& f, const KnotPiece& p, V*
 /// serves both.
 inline bool shared_pieces(const BatchSource& src) {
     const std::size_t n = src.sigma->knots.size();
-    return n > 1 && n <= FlatFunction::kTable && n <= hn::Lanes(D()) &&
-           src.sigma->knots == src.color->knots && src.sigma->inv == src.color->inv;
+    return n > 1 && n <= FlatFunction::kTable && n <= hn::Lanes(D()) && src.shared_knots;
 }
 
 /// f(v) per lane for each component, as PiecewiseLinear::on_piece(piece(v),

@@ -100,6 +100,9 @@ struct BatchSource {
     /// (volume/bricks.h; the paired sample types only, at most 1 GiB); 0:
     /// `data` is x-fastest.
     std::int64_t bricks_x = 0, bricks_y = 0, bricks_z = 0;
+    /// σ and c on the same knots (same_knots(*sigma, *color)): one piece
+    /// lookup per value serves both. Set once with the functions, not per batch.
+    bool shared_knots = false;
 };
 
 /// Blocks of 2 × 2 × 2 cells (3³ nodes, clipped to the lattice), bx = nx/2
@@ -177,6 +180,11 @@ inline std::int64_t split_zero(std::uint32_t zero, std::int64_t l, int dir, std:
     };
     const std::int64_t z = std::min<std::int64_t>(run(zero), avail);
     return z > 0 ? z : -std::min<std::int64_t>(run(~zero), avail);
+}
+
+/// Whether a and b have the same knots (and so the same inverse widths).
+inline bool same_knots(const FlatFunction& a, const FlatFunction& b) {
+    return a.knots == b.knots && a.inv == b.inv;
 }
 
 FlatFunction flatten(const PiecewiseLinear<1>& f);

@@ -328,8 +328,7 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
         for (auto& g : G) hn::Store(zero, d, g + e);
     }
     const V k0 = f != nullptr ? hn::Set(d, f->knots.front()) : zero, flat = hn::Set(d, preint::kFlatRamp);
-    // σ and c with the same knots (and so the same inverse widths)
-    const bool shared = src.sigma->knots == src.color->knots && src.sigma->inv == src.color->inv;
+    const bool shared = src.shared_knots;
     for (std::size_t b = 0; b < segments; b += N) {
         // the segments b … b + N − 1 wanted: not skipped, before the last
         const std::size_t in = std::min(N, segments - b);

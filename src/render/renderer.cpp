@@ -175,6 +175,7 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         flat_color = simd::flatten(tf.color_function());
         batch = {volume.bytes(),   volume.dtype(), volume.dims()[0], volume.dims()[1],
                  volume.dims()[2], &flat_sigma,    &flat_color,      zero_below(tf, s.model)};
+        batch.shared_knots = simd::same_knots(flat_sigma, flat_color);
         batch.breaks = &tf.breakpoints();
         batch.integrals = &tf.integrals();
         batch.associated = tf.associated();
