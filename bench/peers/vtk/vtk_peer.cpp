@@ -150,15 +150,15 @@ bool projection(fathom::Model m) {
 // One fathom renderer and its frame times.
 struct FathomSide {
     std::string integrator;
+    std::string label;  // the printed name: the integrator's, or what sets this run apart
     double termination;
     fathom::Renderer renderer;
     std::vector<double> seconds;
     fathom::Image last;
 
-    FathomSide(const fathom::Scene& sc, const fathom::RenderSettings& s, const std::string& label = {})
-        : integrator(!label.empty()        ? label
-                     : projection(s.model) ? fathom::to_string(s.model)
-                                           : fathom::to_string(s.integrator)),
+    FathomSide(const fathom::Scene& sc, const fathom::RenderSettings& s, const std::string& label_ = {})
+        : integrator(projection(s.model) ? fathom::to_string(s.model) : fathom::to_string(s.integrator)),
+          label(label_.empty() ? integrator : label_),
           termination(s.termination),
           renderer(sc.volume, sc.tf, s) {}
     double render(const fathom::Camera& cam) {
@@ -557,9 +557,10 @@ int run(const Args& a) {
     for (const auto& r : fathom_runs) {
         const double m = median(r.seconds), per_frame = paired(r);
         std::printf("  fathom %-22s median %.3f s  min %.3f s  (VTK / fathom = %.2f; frame by frame %.2f)\n",
-                    r.integrator.c_str(), m, *std::min_element(r.seconds.begin(), r.seconds.end()),
-                    vtk_median / m, per_frame);
+                    r.label.c_str(), m, *std::min_element(r.seconds.begin(), r.seconds.end()), vtk_median / m,
+                    per_frame);
         jf.push_back({{"integrator", r.integrator},
+                      {"label", r.label},
                       {"termination", r.termination},
                       {"frame_seconds", r.seconds},
                       {"median_seconds", m},
