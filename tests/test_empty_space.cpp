@@ -481,6 +481,52 @@ TEST(EmptySpace, LongerBoxesAlongAnAxisHoldOneKind) {
     EXPECT_GT(longer, 0);
 }
 
+// Empty stretches longer than the distance cap (kMaxDistance macrocells):
+// the boxes ahead stop at the cap, the walks go on from there, and images
+// (packets and ray by ray) stay bit-identical to rendering without skipping.
+TEST(EmptySpace, EmptyStretchesBeyondTheDistanceCapStayExact) {
+    // two blobs at the ends: rays from either side walk from one across
+    // the empty middle (260 macrocells) to the other
+    const Volume v = make_volume(560, 24, 20, [](double x, double y, double z) {
+        auto blob = [&](double cx) {
+            return std::max(
+                0.0, 1.0 - std::sqrt((x - cx) * (x - cx) + (y - 12) * (y - 12) + (z - 10) * (z - 10)) / 8.0);
+        };
+        return 0.4 * blob(12) + 0.4 * blob(548);  // faint: rays reach the far one
+    });
+    const Classifier c(blob_tf(), v.smallest_spacing());
+    const EmptySpace es = EmptySpace::for_scalar(v, c, Model::emission_absorption, 1, 1);
+    ASSERT_GT(es.dims()[0], EmptySpace::kMaxDistance + 8);
+    const auto far = es.macrocell({536, 12, 10});
+    EXPECT_EQ(es.distance_ahead(far, 1), EmptySpace::kMaxDistance);  // down x: capped
+    EXPECT_EQ(es.along(1, 1)[es.index(far)], EmptySpace::kMaxDistance);
+    const Bounds b = volume_bounds(v);
+    std::vector<Camera> cams;  // along x both ways (orthographic: every ray meets both), and oblique
+    for (const double az : {0.0, 180.0, 1.0}) {
+        Camera cam = Camera::orbit(az, az == 1.0 ? 0.5 : 0.0, 1.3, b.center, b.radius);
+        cam.projection = Projection::orthographic;
+        cam.height = 26;
+        cams.push_back(cam);
+    }
+    int bad = 0, checked = 0;
+    for (auto k : kSkipping)
+        for (bool packets : {true, false}) {
+            RenderSettings s = base(k, Model::emission_absorption, Order::front_to_back);
+            s.packets = packets;
+            s.step = 0.9;
+            for (const Camera& cam : cams) {
+                s.skip_empty = false;
+                const Image off = Renderer(v, blob_tf(), s).render(cam);
+                s.skip_empty = true;
+                const Renderer on(v, blob_tf(), s);
+                ASSERT_EQ(on.macrocell_cells(), 2);
+                bad += same_pixels(on.render(cam), off) ? 0 : 1;
+                ++checked;
+            }
+        }
+    EXPECT_EQ(bad, 0) << checked;
+}
+
 // The pre-integrated shortcut for ramps where the medium is zero returns the
 // very bits the full evaluation gives, for every model and both variants.
 TEST(EmptySpace, ZeroRampShortcutMatchesTheFullIntegralBitForBit) {
