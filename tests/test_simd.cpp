@@ -363,6 +363,20 @@ std::vector<std::pair<std::string, Classifier>> ramp_tfs() {
     return r;
 }
 
+// The pre-integration batch source of c's transfer function (fs and fc its
+// σ and color flattened; zero_below left for the model).
+simd::BatchSource preint_source(const Classifier& c, const simd::FlatFunction& fs,
+                                const simd::FlatFunction& fc) {
+    simd::BatchSource src;
+    src.sigma = &fs;
+    src.color = &fc;
+    src.shared_knots = simd::same_knots(fs, fc);
+    src.breaks = &c.breakpoints();
+    src.associated = c.associated();
+    src.integrals = &c.integrals();
+    return src;
+}
+
 }  // namespace
 
 // Every lane against preintegrate_scalar: the same bits, or where the lanes
@@ -380,13 +394,7 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
         const double source_max = c.associated() ? color_max : sigma_max * color_max;
         const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
                                  fc = simd::flatten(c.color_function());
-        simd::BatchSource src;
-        src.sigma = &fs;
-        src.color = &fc;
-        src.shared_knots = simd::same_knots(fs, fc);
-        src.breaks = &knots;
-        src.associated = c.associated();
-        src.integrals = &c.integrals();
+        simd::BatchSource src = preint_source(c, fs, fc);
         // ends: random, control values exactly, repeats (constant ramps),
         // nearly repeats (about preint::kFlatRamp apart), NaN
         const double lo = knots.front() - 20, hi = knots.back() + 20;
@@ -485,6 +493,98 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
     EXPECT_GT(taken, 20 * left);
     EXPECT_GT(integrals, taken / 4);
     EXPECT_GT(zero_pieces, taken / 10);
+}
+
+// Segments packed from several windows, with a step each (the packets'
+// pre-integration, simd::preintegrate_pack): every segment's bits, and the
+// segments it leaves to the scalar code, are those of preintegrate_batch over
+// the window it came from, on every target; the pack's last vector partial.
+TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
+    std::mt19937 rng(11);
+    long compared = 0, left = 0;
+    for (const auto& [name, c] : ramp_tfs()) {
+        const auto& knots = c.breakpoints();
+        const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
+                                 fc = simd::flatten(c.color_function());
+        simd::BatchSource src = preint_source(c, fs, fc);
+        std::uniform_real_distribution<double> any(knots.front() - 20, knots.back() + 20);
+        std::uniform_int_distribution<std::size_t> pick(0, knots.size() - 1);
+        // five windows of 2 … kBatch + 1 ends, each with its own step
+        struct Window {
+            alignas(64) double ends[simd::kBatch + 8] = {};
+            int count = 0;
+            double delta = 0;
+            std::uint32_t skip = 0;
+        };
+        std::vector<Window> windows(5);
+        for (std::size_t w = 0; w < windows.size(); ++w) {
+            Window& win = windows[w];
+            win.count = 2 + static_cast<int>(rng() % simd::kBatch);
+            win.delta = std::array{0.01, 0.37, 3.0, 0.05, 0.5}[w];
+            win.skip = w % 2 == 0 ? 0x9u : 0u;
+            for (int j = 0; j < win.count; ++j)
+                win.ends[j] = rng() % 4 == 0            ? knots[pick(rng)]
+                              : rng() % 5 == 0 && j > 0 ? win.ends[j - 1]
+                                                        : any(rng);
+            if (w == 3) win.ends[1] = std::numeric_limits<double>::quiet_NaN();
+        }
+        auto wanted = [&] {
+            int n = 0;
+            for (const Window& win : windows)
+                for (int l = 0; l + 1 < win.count; ++l) n += (win.skip >> l) & 1u ? 0 : 1;
+            return n;
+        };
+        if (wanted() % 8 == 0) {  // a partial last vector on every target
+            Window& last = windows.back();
+            last.count += last.count <= simd::kBatch ? 1 : -1;
+            last.ends[last.count - 1] = any(rng);
+        }
+        for (Model model : {Model::emission_absorption, Model::absorption, Model::emission}) {
+            src.zero_below = zero_below(c, model);
+            for (bool full : {true, false})
+                for (auto t : simd::available_targets()) {
+                    simd::force_target(t);
+                    simd::SegmentPack pack;
+                    for (const Window& win : windows)
+                        for (int l = 0; l + 1 < win.count; ++l) {
+                            if ((win.skip >> l) & 1u) continue;
+                            pack.vf[pack.count] = win.ends[l];
+                            pack.vb[pack.count] = win.ends[l + 1];
+                            pack.delta[pack.count] = win.delta;
+                            ++pack.count;
+                        }
+                    ASSERT_NE(pack.count % 8, 0);
+                    simd::preintegrate_pack(src, model, full, pack);
+                    int k = 0;
+                    for (const Window& win : windows) {
+                        simd::SegmentBatch out;
+                        simd::preintegrate_batch(src, model, full, win.delta, win.ends, win.count, win.skip,
+                                                 out);
+                        for (int l = 0; l + 1 < win.count; ++l) {
+                            if ((win.skip >> l) & 1u) continue;
+                            const bool scalar = ((out.scalar >> l) & 1u) != 0;
+                            ASSERT_EQ(pack.scalar[k] != 0.0, scalar)
+                                << simd::active_target() << " " << name << " segment " << l;
+                            if (scalar) {
+                                ++left;
+                            } else {
+                                ++compared;
+                                EXPECT_EQ(std::memcmp(&pack.transmittance[k], &out.transmittance[l], 8), 0);
+                                for (int q = 0; q < 3; ++q)
+                                    EXPECT_EQ(std::memcmp(&pack.radiance[q][k], &out.radiance[q][l], 8), 0)
+                                        << simd::active_target() << " " << name << " " << to_string(model)
+                                        << (full ? "" : " simple") << " segment " << l << ": "
+                                        << pack.radiance[q][k] << " against " << out.radiance[q][l];
+                            }
+                            ++k;
+                        }
+                    }
+                }
+            simd::force_target(0);
+        }
+    }
+    EXPECT_GT(compared, 10 * left);
+    EXPECT_GT(left, 0);  // the NaN end's segments
 }
 
 TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {

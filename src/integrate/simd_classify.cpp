@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <cstdint>
 #include <limits>
 #include <type_traits>
@@ -1036,10 +1037,54 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         P.count[l] = 0;
         P.queued[l] = P.stopped[l] = 0.0;
     };
-    // Pre-integration: lane l's window's segments, composited in order
-    // (composite()'s operations) until one leaves T below the threshold;
-    // then, where `carry`, its last end starts the next window.
-    SegmentBatch segs;
+    // Pre-integration: lane l's windows wait, their wanted segments (those
+    // with an end at or above the zero range) packed with other lanes' into
+    // whole vectors; `drain` pre-integrates the pack and composites each
+    // window in turn (composite()'s operations), a lane's until one leaves
+    // T below the threshold. A window that fills leaves its last end to the
+    // next (`carry`). The pack is drained at each step's end, before lanes
+    // finish, and when full.
+    struct Waiting {
+        std::size_t lane;
+        unsigned n;          // segments
+        std::uint32_t skip;  // bit i: segment i is (1, 0), not packed
+        int first;           // the pack's place of its first wanted segment
+    };
+    SegmentPack pack;
+    Waiting waiting[SegmentPack::kCapacity];
+    std::size_t waits = 0;
+    auto drain = [&] {
+        if (waits == 0) return;
+        preintegrate_pack(src, pre->model, pre->full, pack);
+        for (std::size_t w = 0; w < waits; ++w) {
+            const Waiting& win = waiting[w];
+            const std::size_t l = win.lane;
+            if (P.stopped[l] != 0.0) continue;
+            double tr = L.T[l], C[3] = {L.C[0][l], L.C[1][l], L.C[2][l]};
+            auto k = static_cast<std::size_t>(win.first);
+            for (unsigned i = 0; i < win.n; ++i) {
+                if (((win.skip >> i) & 1u) != 0) continue;  // (1, 0)
+                double t, r[3];
+                if (pack.scalar[k] != 0.0) {
+                    pre->scalar(pre->ctx, pack.vf[k], pack.vb[k], pack.delta[k], &t, r);
+                } else {
+                    t = pack.transmittance[k];
+                    for (int c = 0; c < 3; ++c) r[c] = pack.radiance[c][k];
+                }
+                ++k;
+                for (int c = 0; c < 3; ++c) C[c] += tr * r[c];
+                tr *= t;
+                if (tr < termination) {
+                    P.stopped[l] = 1.0;
+                    break;
+                }
+            }
+            L.T[l] = tr;
+            for (int c = 0; c < 3; ++c) L.C[c][l] = C[c];
+        }
+        waits = 0;
+        pack.count = 0;
+    };
     auto flush = [&](std::size_t l, bool carry) {
         const int c = P.count[l];
         double* e = P.ends[l];
@@ -1053,27 +1098,19 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             }
             const std::uint32_t all = (std::uint32_t{1} << n) - 1u, skip = below & (below >> 1) & all;
             if (skip != all) {
+                const auto wanted = static_cast<int>(n) - std::popcount(skip);
+                if (pack.count + wanted > static_cast<int>(SegmentPack::kCapacity)) drain();
+                waiting[waits++] = {l, n, skip, pack.count};
                 const double dl = L.dl[l];
-                preintegrate_batch(src, pre->model, pre->full, dl, e, c, skip, segs);
-                double tr = L.T[l], C[3] = {L.C[0][l], L.C[1][l], L.C[2][l]};
+                int k = pack.count;
                 for (unsigned i = 0; i < n; ++i) {
-                    if (((skip >> i) & 1u) != 0) continue;  // (1, 0)
-                    double t, r[3];
-                    if (((segs.scalar >> i) & 1u) != 0) {
-                        pre->scalar(pre->ctx, e[i], e[i + 1], dl, &t, r);
-                    } else {
-                        t = segs.transmittance[i];
-                        for (int k = 0; k < 3; ++k) r[k] = segs.radiance[k][i];
-                    }
-                    for (int k = 0; k < 3; ++k) C[k] += tr * r[k];
-                    tr *= t;
-                    if (tr < termination) {
-                        P.stopped[l] = 1.0;
-                        break;
-                    }
+                    if (((skip >> i) & 1u) != 0) continue;
+                    pack.vf[k] = e[i];
+                    pack.vb[k] = e[i + 1];
+                    pack.delta[k] = dl;
+                    ++k;
                 }
-                L.T[l] = tr;
-                for (int k = 0; k < 3; ++k) L.C[k][l] = C[k];
+                pack.count = k;
             }
         }
         if (carry && c > 0) {
@@ -1129,13 +1166,16 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     auto finish = [&](const M* done, bool background) {
         HWY_ALIGN double mask[kPacketLanesMax];
         for (std::size_t h = 0; h < K; ++h) hn::Store(hn::IfThenElseZero(done[h], one), d, mask + h * N);
+        if constexpr (kPre) {
+            if (background)  // the last windows
+                for (std::size_t l = 0; l < lanes; ++l)
+                    if (mask[l] != 0.0) flush(l, false);
+            drain();
+        }
         for (std::size_t l = 0; l < lanes; ++l) {
             if (mask[l] == 0.0) continue;
             bool with_bg = background;
-            if constexpr (kPre) {
-                if (background) flush(l, false);  // the last window
-                with_bg = with_bg && P.stopped[l] == 0.0;
-            }
+            if constexpr (kPre) with_bg = with_bg && P.stopped[l] == 0.0;
             PacketResult& r = out[L.ray[l]];
             const double tl = L.T[l];
             for (int c = 0; c < 3; ++c) r.radiance[c] = with_bg ? L.C[c][l] + tl * bg[c] : L.C[c][l];
@@ -1236,6 +1276,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const auto m = static_cast<std::size_t>(sampled[l]);
                 if (m > 0 && P.stopped[l] == 0.0) push_step(l, m, sample_at, values);
             }
+            drain();
         }
         bool stop = false;
         for (std::size_t h = 0; h < K; ++h) {

@@ -277,14 +277,16 @@ void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, Packe
 /// ends (PacketRay's grid with offset 0: end e is sample e + 1, ends 0..n)
 /// where a segment has an end in a non-empty macrocell, and pre-integrates
 /// the segments between them in windows of kBatch + 1 consecutive ends of
-/// its ray (preintegrate_batch, as integrate_preintegrated does), so the
-/// same bits. Only where empty macrocells join (EmptySpace::joins_empty):
+/// its ray (as integrate_preintegrated does); the windows' segments that are
+/// not (1, 0) are packed with other lanes' into whole vectors
+/// (preintegrate_pack: preintegrate_batch's operations lane by lane), so
+/// the same bits. Only where empty macrocells join (EmptySpace::joins_empty):
 /// a segment whose two ends lie in empty macrocells is then (1, 0).
 struct PacketPreint {
     Model model = Model::emission_absorption;
     bool full = true;  // `preintegrated` (else `preintegrated-simple`)
     /// preintegrate_scalar's segment (vf → vb over delta) where
-    /// preintegrate_batch leaves one to the scalar code.
+    /// preintegrate_pack leaves one to the scalar code.
     void (*scalar)(const void* ctx, double vf, double vb, double delta, double* t,
                    double* radiance) = nullptr;
     const void* ctx = nullptr;

@@ -290,45 +290,88 @@ HWY_INLINE V Column(D d, const IntegralFunctions& f, std::size_t c, VI p) {
     return gather::Doubles(d, f.col[c].data(), p);
 }
 
+/// The integral functions S and G (IntegralFunctions) at v per lane.
+HWY_INLINE void EndIntegrals(D d, const IntegralFunctions& f, bool absorb, bool source, V v, V& S, V* G) {
+    using F = IntegralFunctions;
+    const VI p = Count<false>(d, f.knots, v);
+    const V x = hn::Sub(v, Column(d, f, F::kStart, p)), w = hn::Mul(x, Column(d, f, F::kInvWidth, p));
+    if (absorb)
+        S = Fma(x, Fma(Column(d, f, F::kHalfRise, p), w, Column(d, f, F::kSigma, p)), Column(d, f, F::kS, p));
+    if (source)
+        for (std::size_t k = 0; k < 3; ++k) {
+            const V c = Fma(w, Column(d, f, F::kC + k, p), Column(d, f, F::kB + k, p));
+            const V a = Fma(w, c, Column(d, f, F::kA + k, p));
+            G[k] = Fma(x, a, Column(d, f, F::kG + k, p));
+        }
+}
+
+/// The segments vf → vb over vdelta of the lanes `ok` (the others flagged
+/// scalar); with integral functions `f` (without self-attenuation), S and G
+/// at the two ends (Sf, Sb, Gf, Gb).
+HWY_INLINE Segments SegmentsOf(D d, const BatchSource& src, Model model, bool full,
+                               const IntegralFunctions* f, V vdelta, V vf, V vb, M ok, V Sf, V Sb,
+                               const V* Gf, const V* Gb) {
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
+    const bool absorb = model != Model::emission, source = model != Model::absorption;
+    const bool shared = src.shared_knots;
+    if (f == nullptr) return RampSegments(d, src, shared, model, full, vdelta, vf, vb, ok);
+    // steep_ramp and integral_segment per lane
+    const V k0 = hn::Set(d, f->knots.front()), flat = hn::Set(d, preint::kFlatRamp);
+    Segments r;
+    const V dv = hn::Sub(vb, vf);
+    const M steep = hn::And(
+        ok, hn::Gt(hn::Abs(dv), hn::Mul(flat, hn::Add(hn::Abs(hn::Sub(vf, k0)), hn::Abs(hn::Sub(vb, k0))))));
+    const M pieces = hn::AndNot(steep, ok);  // the lanes that take the ramp's pieces
+    const V ratio = hn::Div(vdelta, dv);
+    r.T = one;
+    r.scalar = hn::Not(ok);
+    if (absorb) {
+        V tau = hn::Mul(hn::Sub(Sb, Sf), ratio);
+        tau = hn::IfThenElse(hn::Gt(tau, zero), tau, zero);
+        r.scalar = hn::Or(r.scalar, hn::AndNot(InRange(d, tau), steep));
+        r.T = ExpNeg(d, tau);
+    }
+    for (std::size_t k = 0; k < 3; ++k)
+        r.E[k] = source ? hn::Add(hn::Mul(hn::Sub(Gb[k], Gf[k]), ratio), zero) : zero;
+    if (!hn::AllFalse(d, pieces)) {
+        const Segments p = RampSegments(d, src, shared, model, full, vdelta, vf, vb, pieces);
+        r.T = hn::IfThenElse(pieces, p.T, r.T);
+        for (std::size_t k = 0; k < 3; ++k) r.E[k] = hn::IfThenElse(pieces, p.E[k], r.E[k]);
+        r.scalar = hn::Or(hn::AndNot(pieces, r.scalar), hn::And(pieces, p.scalar));
+    }
+    return r;
+}
+
+/// The integral functions of a batch source without self-attenuation, or null.
+inline const IntegralFunctions* integrals_of(const BatchSource& src, bool full) {
+    return !full && src.integrals != nullptr && !src.integrals->empty() ? src.integrals : nullptr;
+}
+
 void PreintegrateBatch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
                        int count, std::uint32_t skip, SegmentBatch& out) {
     const D d;
     const std::size_t N = hn::Lanes(d);
-    const V zero = hn::Zero(d), one = hn::Set(d, 1.0), vdelta = hn::Set(d, delta);
+    const V zero = hn::Zero(d), vdelta = hn::Set(d, delta);
     const auto segments = static_cast<std::size_t>(std::max(count - 1, 0));
     out.scalar = ~std::uint32_t{0};
     if (src.sigma->knots.empty() || src.color->knots.empty()) return;  // nothing to select from
     // Without self-attenuation: S and G at every end once (integral_segment).
-    const IntegralFunctions* f =
-        !full && src.integrals != nullptr && !src.integrals->empty() ? src.integrals : nullptr;
+    const IntegralFunctions* f = integrals_of(src, full);
     HWY_ALIGN double S[kBatch + 2 * hn::MaxLanes(d)], G[3][kBatch + 2 * hn::MaxLanes(d)];
     const bool absorb = model != Model::emission, source = model != Model::absorption;
     if (f != nullptr) {
-        using F = IntegralFunctions;
         const auto n = static_cast<std::size_t>(count);
         std::size_t e = 0;
         for (; e < n; e += N) {
-            const V v = hn::LoadU(d, ends + e);
-            const VI p = Count<false>(d, f->knots, v);
-            const V x = hn::Sub(v, Column(d, *f, F::kStart, p)),
-                    w = hn::Mul(x, Column(d, *f, F::kInvWidth, p));
-            if (absorb)
-                hn::Store(Fma(x, Fma(Column(d, *f, F::kHalfRise, p), w, Column(d, *f, F::kSigma, p)),
-                              Column(d, *f, F::kS, p)),
-                          d, S + e);
-            if (source)
-                for (std::size_t k = 0; k < 3; ++k) {
-                    const V c = Fma(w, Column(d, *f, F::kC + k, p), Column(d, *f, F::kB + k, p));
-                    const V a = Fma(w, c, Column(d, *f, F::kA + k, p));
-                    hn::Store(Fma(x, a, Column(d, *f, F::kG + k, p)), d, G[k] + e);
-                }
+            V s = zero, g[3] = {zero, zero, zero};
+            EndIntegrals(d, *f, absorb, source, hn::LoadU(d, ends + e), s, g);
+            hn::Store(s, d, S + e);
+            for (std::size_t k = 0; k < 3; ++k) hn::Store(g[k], d, G[k] + e);
         }
         // the lanes past the last end: read by the last vector of segments, never used
         hn::Store(zero, d, S + e);
         for (auto& g : G) hn::Store(zero, d, g + e);
     }
-    const V k0 = f != nullptr ? hn::Set(d, f->knots.front()) : zero, flat = hn::Set(d, preint::kFlatRamp);
-    const bool shared = src.shared_knots;
     for (std::size_t b = 0; b < segments; b += N) {
         // the segments b … b + N − 1 wanted: not skipped, before the last
         const std::size_t in = std::min(N, segments - b);
@@ -337,44 +380,51 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
         if (wanted == 0) continue;
         const V vf = hn::LoadU(d, ends + b), vb = hn::LoadU(d, ends + b + 1);
         const M ok = hn::And(hn::LoadMaskBits(d, &wanted), hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
-        Segments r;
-        M pieces = ok;  // the lanes that take the ramp's pieces
+        V Sf = zero, Sb = zero, Gf[3] = {zero, zero, zero}, Gb[3] = {zero, zero, zero};
         if (f != nullptr) {
-            // steep_ramp and integral_segment per lane
-            const V dv = hn::Sub(vb, vf);
-            const M steep = hn::And(
-                ok, hn::Gt(hn::Abs(dv),
-                           hn::Mul(flat, hn::Add(hn::Abs(hn::Sub(vf, k0)), hn::Abs(hn::Sub(vb, k0))))));
-            pieces = hn::AndNot(steep, ok);
-            const V ratio = hn::Div(vdelta, dv);
-            r.T = one;
-            r.scalar = hn::Not(ok);
-            if (absorb) {
-                V tau = hn::Mul(hn::Sub(hn::LoadU(d, S + b + 1), hn::LoadU(d, S + b)), ratio);
-                tau = hn::IfThenElse(hn::Gt(tau, zero), tau, zero);
-                r.scalar = hn::Or(r.scalar, hn::AndNot(InRange(d, tau), steep));
-                r.T = ExpNeg(d, tau);
+            Sf = hn::LoadU(d, S + b);
+            Sb = hn::LoadU(d, S + b + 1);
+            for (std::size_t k = 0; k < 3; ++k) {
+                Gf[k] = hn::LoadU(d, G[k] + b);
+                Gb[k] = hn::LoadU(d, G[k] + b + 1);
             }
-            for (std::size_t k = 0; k < 3; ++k)
-                r.E[k] =
-                    source
-                        ? hn::Add(hn::Mul(hn::Sub(hn::LoadU(d, G[k] + b + 1), hn::LoadU(d, G[k] + b)), ratio),
-                                  zero)
-                        : zero;
-            if (!hn::AllFalse(d, pieces)) {
-                const Segments p = RampSegments(d, src, shared, model, full, vdelta, vf, vb, pieces);
-                r.T = hn::IfThenElse(pieces, p.T, r.T);
-                for (std::size_t k = 0; k < 3; ++k) r.E[k] = hn::IfThenElse(pieces, p.E[k], r.E[k]);
-                r.scalar = hn::Or(hn::AndNot(pieces, r.scalar), hn::And(pieces, p.scalar));
-            }
-        } else {
-            r = RampSegments(d, src, shared, model, full, vdelta, vf, vb, ok);
         }
+        const Segments r = SegmentsOf(d, src, model, full, f, vdelta, vf, vb, ok, Sf, Sb, Gf, Gb);
         hn::Store(r.T, d, out.transmittance + b);
         for (int k = 0; k < 3; ++k) hn::Store(r.E[k], d, out.radiance[k] + b);
         std::uint8_t bits[8] = {};
         hn::StoreMaskBits(d, hn::Not(r.scalar), bits);
         out.scalar &= ~(static_cast<std::uint32_t>(bits[0]) << b);
+    }
+}
+
+void PreintegratePack(const BatchSource& src, Model model, bool full, SegmentPack& pack) {
+    const D d;
+    const std::size_t N = hn::Lanes(d);
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
+    const auto n = static_cast<std::size_t>(pack.count);
+    if (src.sigma->knots.empty() || src.color->knots.empty()) {  // nothing to select from
+        std::fill(pack.scalar, pack.scalar + n, 1.0);
+        return;
+    }
+    const IntegralFunctions* f = integrals_of(src, full);
+    const bool absorb = model != Model::emission, source = model != Model::absorption;
+    for (std::size_t b = 0; b < n; b += N) {
+        const M in = hn::FirstN(d, n - b);  // the lanes past the last: zeros, not used
+        const V vf = hn::IfThenElseZero(in, hn::Load(d, pack.vf + b)),
+                vb = hn::IfThenElseZero(in, hn::Load(d, pack.vb + b));
+        const M ok = hn::And(in, hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
+        V Sf = zero, Sb = zero, Gf[3] = {zero, zero, zero}, Gb[3] = {zero, zero, zero};
+        if (f != nullptr) {
+            EndIntegrals(d, *f, absorb, source, vf, Sf, Gf);
+            EndIntegrals(d, *f, absorb, source, vb, Sb, Gb);
+        }
+        const Segments r =
+            SegmentsOf(d, src, model, full, f, hn::IfThenElseZero(in, hn::Load(d, pack.delta + b)), vf, vb,
+                       ok, Sf, Sb, Gf, Gb);
+        hn::Store(r.T, d, pack.transmittance + b);
+        for (int k = 0; k < 3; ++k) hn::Store(r.E[k], d, pack.radiance[k] + b);
+        hn::Store(hn::IfThenElseZero(r.scalar, one), d, pack.scalar + b);
     }
 }
 
@@ -387,10 +437,15 @@ HWY_AFTER_NAMESPACE();
 namespace fathom::simd {
 
 HWY_EXPORT(PreintegrateBatch);
+HWY_EXPORT(PreintegratePack);
 
 void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
                         int count, std::uint32_t skip, SegmentBatch& out) {
     HWY_DYNAMIC_DISPATCH(PreintegrateBatch)(src, model, full, delta, ends, count, skip, out);
+}
+
+void preintegrate_pack(const BatchSource& src, Model model, bool full, SegmentPack& pack) {
+    HWY_DYNAMIC_DISPATCH(PreintegratePack)(src, model, full, pack);
 }
 
 }  // namespace fathom::simd

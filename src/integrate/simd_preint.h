@@ -41,4 +41,20 @@ struct SegmentBatch {
 void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
                         int count, std::uint32_t skip, SegmentBatch& out);
 
+/// Segments from several windows (and rays) packed into whole vectors:
+/// segment i runs vf[i] → vb[i] over delta[i]. Arrays are padded to whole
+/// vectors of the widest target (their values past `count` read, not used).
+struct SegmentPack {
+    static constexpr std::size_t kCapacity = 256;
+    static constexpr std::size_t kPadded = kCapacity + 8;
+    alignas(64) double vf[kPadded], vb[kPadded], delta[kPadded];
+    alignas(64) double transmittance[kPadded], radiance[3][kPadded];
+    alignas(64) double scalar[kPadded];  // 1: not computed (the scalar code's)
+    int count = 0;
+};
+
+/// Pre-integrates pack's segments 0 … count − 1 as preintegrate_batch does
+/// each segment (the same operations lane by lane, so the same bits).
+void preintegrate_pack(const BatchSource& src, Model model, bool full, SegmentPack& pack);
+
 }  // namespace fathom::simd
