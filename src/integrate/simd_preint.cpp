@@ -1,5 +1,5 @@
 // Highway's foreach_target: this file is compiled once per x86 target and
-// preintegrate_batch dispatches at run time (src/integrate/simd_preint.h).
+// preintegrate_batch and preintegrate_pack dispatch at run time (src/integrate/simd_preint.h).
 // Every lane performs the scalar code's operations (preintegrated.h's
 // for_each_ramp_piece and RampIntegral, preint_piece.h's integrate_piece,
 // exp_neg.h) in the same order, the multiply–adds written Fma fused into
