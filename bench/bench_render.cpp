@@ -231,9 +231,9 @@ void preint_segments(benchmark::State& state) {
         const auto ends = static_cast<std::int64_t>(len / 0.5);
         for (std::int64_t j = 0; j + kEnds <= ends; j += kEnds - 1) {
             Window w{};
-            std::uint32_t below = 0;
+            std::uint64_t below = 0;
             fathom::simd::interpolate_batch(src, ray, j, kEnds, w.ends, &below);
-            w.skip = below & (below >> 1) & ((1u << (kEnds - 1)) - 1u);
+            w.skip = static_cast<std::uint32_t>(below & (below >> 1) & ((1u << (kEnds - 1)) - 1u));
             windows.push_back(w);
         }
     }

@@ -76,36 +76,43 @@ inline bool images_agree(const Image& a, const Image& b) {
            pixels_agree(a.first_hit, b.first_hit);
 }
 
-/// Interpolates the kBatch samples of ray g from src on every target and
-/// compares each with GridSampler over v (the same lattice, x-fastest;
-/// lanes_agree within lerp_tolerance of v's largest |node|, `magnitude`),
-/// and the bits of those below src.zero_below with the values (of a partial
-/// batch too). Returns how many samples were compared, or −1 after a
-/// failure naming the target, `what` and the sample.
+/// Interpolates 3·kBatch − 3 samples of ray g from src in one call (more
+/// than one batch, the last partial) on every target and compares each
+/// with GridSampler over v (the same lattice, x-fastest; lanes_agree within
+/// lerp_tolerance of v's largest |node|, `magnitude`), and the bits of
+/// those below src.zero_below with the values (of a partial batch too).
+/// Returns how many samples were compared, or −1 after a failure naming
+/// the target, `what` and the sample.
 inline int batch_matches_sampler(const simd::BatchSource& src, const simd::RayGrid& g, const Volume& v,
                                  double magnitude, const std::string& what) {
     int compared = 0;
-    alignas(64) double got[simd::kBatch], part[simd::kBatch];
+    constexpr int kCount = 3 * simd::kBatch - 3;
+    alignas(64) double got[3 * simd::kBatch], part[simd::kBatch];
     for (auto t : simd::available_targets()) {
         simd::force_target(t);
-        std::uint32_t below = ~0u, part_below = ~0u;
-        simd::interpolate_batch(src, g, 0, simd::kBatch, got, &below);
+        std::uint64_t below = ~std::uint64_t{0}, part_below = ~std::uint64_t{0};
+        simd::interpolate_batch(src, g, 0, kCount, got, &below);
         constexpr int kPart = simd::kBatch - 5;
         simd::interpolate_batch(src, g, 0, kPart, part, &part_below);
-        for (int l = 0; l < simd::kBatch; ++l)
-            if (((below >> l) & 1u) != static_cast<std::uint32_t>(got[l] < src.zero_below)) {
+        if ((below >> kCount) != 0) {
+            ADD_FAILURE() << simd::active_target() << " " << what << ": below bits past the last sample";
+            simd::force_target(0);
+            return -1;
+        }
+        for (int l = 0; l < kCount; ++l)
+            if (((below >> l) & 1u) != static_cast<std::uint64_t>(got[l] < src.zero_below)) {
                 ADD_FAILURE() << simd::active_target() << " " << what << " sample " << l << ": below bit "
                               << ((below >> l) & 1u) << " for " << got[l] << " and " << src.zero_below;
                 simd::force_target(0);
                 return -1;
             }
-        if (part_below != (below & ((1u << kPart) - 1u))) {
+        if (part_below != (below & ((std::uint64_t{1} << kPart) - 1u))) {
             ADD_FAILURE() << simd::active_target() << " " << what << ": below bits of " << kPart
                           << " samples " << part_below << " against " << below;
             simd::force_target(0);
             return -1;
         }
-        for (int l = 0; l < simd::kBatch; ++l) {
+        for (int l = 0; l < kCount; ++l) {
             const Vec3 p = g.p0 + g.dp * (g.t_near + (l + g.offset) * g.delta);
             const double want = visit_dtype(v.dtype(), [&]<class T>(T*) { return GridSampler<T>(v)(p); });
             if (!lanes_agree(got[l], want, lerp_tolerance(magnitude))) {

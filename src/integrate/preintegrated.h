@@ -215,7 +215,8 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
 /// The integrator: samples the n + 1 segment ends once each and composites
 /// the segments. The scalar of a scalar medium is interpolated kBatch ends
 /// at a time with `simd`, and (unshaded) the segments between them are
-/// pre-integrated a vector at a time (simd_preint.h; the same bits);
+/// pre-integrated a vector at a time (simd_preint.h; the same bits; with
+/// self-attenuation, a window's wanted segments packed into whole vectors);
 /// otherwise a two-slot cache serves both orders. With `es`, runs of
 /// segments whose two ends lie in one box of empty macrocells are skipped
 /// (exact).
@@ -238,14 +239,25 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // goes on from the last one, that one's last end carried over beside
     // them (the same bits: the same end), so that a window of kBatch + 1
     // ends gives kBatch segments (whole vectors) and no end is interpolated
-    // twice.
+    // twice. Packed (below), a window that goes on from the last takes up
+    // to kWide ends.
     constexpr int kCarry = 8;
-    alignas(64) double store[kCarry + simd::kBatch + 8] = {};  // preintegrate_batch reads past the last end
+    constexpr int kWide = 3 * simd::kBatch;
+    alignas(64) double store[kCarry + kWide + 8] = {};  // preintegrate_batch reads past the last end
     const double* batch = store + kCarry;
     simd::Window win;
     // The segments between the window's ends, computed on the first request.
     simd::SegmentBatch segs;
     bool segs_ready = false;
+    // Packed (full pre-integration, unshaded): the window's wanted segments
+    // (not both ends below the zero range) are pre-integrated kPackChunk at
+    // a time, from the first one requested on in the order of travel,
+    // packed into whole vectors across the window's gaps (preintegrate_pack:
+    // the same bits); slot[l]: segment l's place in `pack`, −1 until then.
+    const bool packed = simd != nullptr && full && !Medium::kShaded;
+    constexpr int kPackChunk = simd::kBatch;
+    simd::SegmentPack pack;
+    std::array<std::int16_t, kWide + 1> slot{};
     // Shaded media: the shading factors at the midpoints of those segments
     // (segment i at t_near + (i − 0.5)·δ), computed on the first request.
     simd::RayGrid mid{span.p0, span.dp, span.t_near, delta, -0.5, 0};
@@ -253,7 +265,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     simd::ShadeBatch shades;
     bool shades_ready = false;
     std::int64_t run_end = s.order == Order::front_to_back ? n : 0;
-    std::uint32_t below = 0;  // bit l: end win.b0 + l is below simd->zero_below
+    std::uint64_t below = 0;  // bit l: end win.b0 + l is below simd->zero_below
     bool masked = false;      // whether `below` holds the window's bits
     // The batch of ends from j in the direction of travel; with `mask`, also
     // which of them lie below the medium's zero range (the skipping walk's).
@@ -262,15 +274,15 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         // the last window's end at j, carried over (its bits too where the new ones are needed)
         const bool carry = (forward ? win.b1 == j : win.b0 == j) && (masked || !mask);
         const double carried = carry ? batch[j - win.b0] : 0.0;
-        const std::uint32_t carried_bit = carry && mask ? (below >> (j - win.b0)) & 1u : 0u;
+        const std::uint64_t carried_bit = carry && mask ? (below >> (j - win.b0)) & 1u : 0u;
         double* fresh = store + kCarry;
-        std::uint32_t bits = 0;
-        // with a carried end, kBatch new ones beside it (after it forward, before it backward)
-        win.start_at(j, forward, run_end, carry ? simd::kBatch + 1 : simd::kBatch);
+        std::uint64_t bits = 0;
+        // with a carried end, kBatch (packed: kWide) new ones beside it
+        // (after it forward, before it backward)
+        win.start_at(j, forward, run_end, carry ? (packed ? kWide : simd::kBatch) + 1 : simd::kBatch);
         const int k = carry ? win.count() - 1 : win.count();
-        if (k > 0)
-            simd::interpolate_batch(*simd, rg, carry && forward ? win.b0 + 1 : win.b0, k, fresh,
-                                    mask ? &bits : nullptr);
+        const std::int64_t j0 = carry && forward ? win.b0 + 1 : win.b0;
+        if (k > 0) simd::interpolate_batch(*simd, rg, j0, k, fresh, mask ? &bits : nullptr);
         batch = fresh;
         if (carry && forward) {  // ends j (carried), j + 1 … win.b1
             store[kCarry - 1] = carried;
@@ -284,6 +296,10 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         masked = mask;
         segs_ready = false;
         shades_ready = false;
+        if (packed) {
+            pack.count = 0;
+            std::fill(slot.begin(), slot.end(), std::int16_t{-1});
+        }
     };
     auto end = [&](std::int64_t j) -> End {
         if constexpr (Medium::kHasScalar) {
@@ -372,11 +388,38 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             // The evaluated run's last segment, and whether i lies in it.
             std::int64_t seg_end = s.order == Order::front_to_back ? n : 1;
             bool in_run = es == nullptr;
+            // Packed: the next kPackChunk wanted segments of the window from
+            // segment l on (in the order of travel), in a new vector. (Not
+            // inlined: the segments' hot path stays small.)
+            auto pack_from = [&](int l) __attribute__((noinline)) {
+                const std::uint64_t skip = below & (below >> 1);
+                const int step = s.order == Order::front_to_back ? 1 : -1, last = win.count() - 2;
+                const int first = (pack.count + 7) / 8 * 8;
+                pack.count = first;
+                for (int q = l; q >= 0 && q <= last && pack.count - first < kPackChunk; q += step) {
+                    const auto u = static_cast<std::size_t>(q);
+                    if (((skip >> q) & 1u) != 0 || slot[u] >= 0) continue;
+                    slot[u] = static_cast<std::int16_t>(pack.count);
+                    pack.vf[pack.count] = batch[q];
+                    pack.vb[pack.count] = batch[q + 1];
+                    pack.delta[pack.count] = delta;
+                    ++pack.count;
+                }
+                simd::preintegrate_pack(*simd, M, full, pack, first);
+            };
             // The run splitter below has loaded a window holding both ends.
             auto batch_segment = [&](std::int64_t i) -> Segment {
+                if (packed) {
+                    const auto l = static_cast<std::size_t>(i - 1 - win.b0);
+                    if (slot[l] < 0) pack_from(static_cast<int>(l));
+                    const auto k = static_cast<std::size_t>(slot[l]);
+                    if (pack.scalar[k] != 0.0) return segment(i);
+                    return {pack.transmittance[k],
+                            {pack.radiance[0][k], pack.radiance[1][k], pack.radiance[2][k]}};
+                }
                 if (!segs_ready) {  // all but the segments with both ends below the zero range
-                    simd::preintegrate_batch(*simd, M, full, delta, batch, win.count(), below & (below >> 1),
-                                             segs);
+                    simd::preintegrate_batch(*simd, M, full, delta, batch, win.count(),
+                                             static_cast<std::uint32_t>(below & (below >> 1)), segs);
                     segs_ready = true;
                 }
                 const auto l = static_cast<std::size_t>(i - 1 - win.b0);
@@ -390,8 +433,8 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
                                                                   (static_cast<double>(i) - 0.5) * delta)));
                     if (!shades_ready) {  // the window's segments, but those with both ends below the zero
                                           // range
-                        simd::shade_batch(*simd, mid, win.b0 + 1, win.count() - 1, below & (below >> 1),
-                                          shades);
+                        simd::shade_batch(*simd, mid, win.b0 + 1, win.count() - 1,
+                                          static_cast<std::uint32_t>(below & (below >> 1)), shades);
                         shades_ready = true;
                     }
                     decltype(medium.factors(Vec3{})) sf;

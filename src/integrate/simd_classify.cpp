@@ -1463,19 +1463,23 @@ void ShadeBatchAt(const BatchSource& src, const RayGrid& ray, std::int64_t j0, i
 }
 
 void InterpolateBatch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
-                      std::uint32_t* below) {
-    const std::size_t used =
-        visit_dtype(src.type, [&]<class T>(T*) { return interpolate_typed<T>(src, ray, j0, count, out); });
+                      std::uint64_t* below) {
+    std::size_t used = 0;  // values written: whole vectors
+    visit_dtype(src.type, [&]<class T>(T*) {
+        for (int c = 0; c < count; c += kBatch)
+            used = static_cast<std::size_t>(c) +
+                   interpolate_typed<T>(src, ray, j0 + c, std::min(count - c, kBatch), out + c);
+    });
     if (below == nullptr) return;
     const D d;
     const V zero_below = hn::Set(d, src.zero_below);
-    std::uint32_t bits = 0;
+    std::uint64_t bits = 0;
     for (std::size_t b = 0; b < used; b += hn::Lanes(d)) {
         std::uint8_t lanes[8] = {};
         hn::StoreMaskBits(d, hn::Lt(hn::Load(d, out + b), zero_below), lanes);  // N ≤ 8 lanes of doubles
-        bits |= static_cast<std::uint32_t>(lanes[0]) << b;
+        bits |= static_cast<std::uint64_t>(lanes[0]) << b;
     }
-    *below = bits & ((std::uint32_t{1} << count) - 1u);  // count ≤ kBatch < 32
+    *below = bits & ((std::uint64_t{1} << count) - 1u);  // count < 64
 }
 
 std::int64_t TargetOf() {
@@ -1507,7 +1511,7 @@ void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0,
 }
 
 void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
-                       std::uint32_t* below) {
+                       std::uint64_t* below) {
     HWY_DYNAMIC_DISPATCH(InterpolateBatch)(src, ray, j0, count, out, below);
 }
 

@@ -174,9 +174,14 @@ inline std::int64_t least_run_end(std::int64_t i, int dir, std::int64_t last, st
 /// The samples from lane l of a batch, in direction dir (±1), at most
 /// `avail` of them: k > 0 when the first k are zero (bit set in `zero`),
 /// −k when the first k are not (the skip convention of composite()).
-inline std::int64_t split_zero(std::uint32_t zero, std::int64_t l, int dir, std::int64_t avail) {
-    const auto run = [&](std::uint32_t bits) {  // leading set bits from l in direction dir
-        return dir > 0 ? std::countr_one(bits >> l) : std::countl_one(bits << (31 - l));
+/// (`zero`: 32 or 64 bits.)
+template <class Bits>
+std::int64_t split_zero(Bits zero, std::int64_t l, int dir, std::int64_t avail) {
+    static_assert(std::is_same_v<Bits, std::uint32_t> || std::is_same_v<Bits, std::uint64_t>);
+    constexpr std::int64_t kTop = std::numeric_limits<Bits>::digits - 1;
+    const auto run = [&](Bits bits) {  // leading set bits from l in direction dir
+        return dir > 0 ? std::countr_one(static_cast<Bits>(bits >> l))
+                       : std::countl_one(static_cast<Bits>(bits << (kTop - l)));
     };
     const std::int64_t z = std::min<std::int64_t>(run(zero), avail);
     return z > 0 ? z : -std::min<std::int64_t>(run(~zero), avail);
@@ -195,11 +200,12 @@ FlatFunction flatten(const PiecewiseLinear<3>& f);
 void classify_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, BatchOut& out);
 
 /// The trilinear scalar alone of samples j0 .. j0 + count − 1 (GridSampler's
-/// bits), for pre-integration's segment ends; `out` holds kBatch values
-/// (whole vectors are computed) and is 64-byte aligned. With `below`, also
-/// bit l for each sample below src.zero_below (l < count).
+/// bits), for pre-integration's segment ends, kBatch at a time (count <
+/// 64); `out` holds count rounded up to a multiple of kBatch values (whole
+/// vectors are computed) and is 64-byte aligned. With `below`, also bit l
+/// for each sample below src.zero_below (l < count).
 void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t j0, int count, double* out,
-                       std::uint32_t* below = nullptr);
+                       std::uint64_t* below = nullptr);
 
 /// Ray packets (docs/performance.md "Ray packets"): the point-sampled
 /// quadratures (BatchSource::rule, unshaded, front to back, with skipping)

@@ -398,18 +398,19 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
     }
 }
 
-void PreintegratePack(const BatchSource& src, Model model, bool full, SegmentPack& pack) {
+void PreintegratePack(const BatchSource& src, Model model, bool full, SegmentPack& pack, int first) {
     const D d;
     const std::size_t N = hn::Lanes(d);
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
     const auto n = static_cast<std::size_t>(pack.count);
+    const auto b0 = static_cast<std::size_t>(first);
     if (src.sigma->knots.empty() || src.color->knots.empty()) {  // nothing to select from
-        std::fill(pack.scalar, pack.scalar + n, 1.0);
+        std::fill(pack.scalar + b0, pack.scalar + n, 1.0);
         return;
     }
     const IntegralFunctions* f = integrals_of(src, full);
     const bool absorb = model != Model::emission, source = model != Model::absorption;
-    for (std::size_t b = 0; b < n; b += N) {
+    for (std::size_t b = b0; b < n; b += N) {
         const M in = hn::FirstN(d, n - b);  // the lanes past the last: zeros, not used
         const V vf = hn::IfThenElseZero(in, hn::Load(d, pack.vf + b)),
                 vb = hn::IfThenElseZero(in, hn::Load(d, pack.vb + b));
@@ -444,8 +445,8 @@ void preintegrate_batch(const BatchSource& src, Model model, bool full, double d
     HWY_DYNAMIC_DISPATCH(PreintegrateBatch)(src, model, full, delta, ends, count, skip, out);
 }
 
-void preintegrate_pack(const BatchSource& src, Model model, bool full, SegmentPack& pack) {
-    HWY_DYNAMIC_DISPATCH(PreintegratePack)(src, model, full, pack);
+void preintegrate_pack(const BatchSource& src, Model model, bool full, SegmentPack& pack, int first) {
+    HWY_DYNAMIC_DISPATCH(PreintegratePack)(src, model, full, pack, first);
 }
 
 }  // namespace fathom::simd

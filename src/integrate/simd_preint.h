@@ -53,8 +53,9 @@ struct SegmentPack {
     int count = 0;
 };
 
-/// Pre-integrates pack's segments 0 … count − 1 as preintegrate_batch does
-/// each segment (the same operations lane by lane, so the same bits).
-void preintegrate_pack(const BatchSource& src, Model model, bool full, SegmentPack& pack);
+/// Pre-integrates pack's segments first … count − 1 (`first` a multiple of
+/// 8, so that they start a vector on every target) as preintegrate_batch
+/// does each segment (the same operations lane by lane, so the same bits).
+void preintegrate_pack(const BatchSource& src, Model model, bool full, SegmentPack& pack, int first = 0);
 
 }  // namespace fathom::simd
