@@ -212,18 +212,12 @@ Segment preintegrate_grid(double sf, const Rgb& cf, double sb, const Rgb& cb, do
     return {preint::exp_neg(r.depth), r.radiance};
 }
 
-/// The integrator: samples the n + 1 segment ends once each and composites
-/// the segments. The scalar of a scalar medium is interpolated kBatch ends
-/// at a time with `simd`, and (unshaded) the segments between them are
-/// pre-integrated a vector at a time (simd_preint.h; the same bits; with
-/// self-attenuation, a window's wanted segments packed into whole vectors);
-/// otherwise a two-slot cache serves both orders. With `es`, runs of
-/// segments whose two ends lie in one box of empty macrocells are skipped
-/// (exact).
-template <Model M, class Medium>
-RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
-                                  double h, const Rgb& bg, bool full, const EmptySpace* es,
-                                  const simd::BatchSource* simd = nullptr) {
+namespace detail {
+/// integrate_preintegrated below; kPacked: full pre-integration of an
+/// unshaded scalar medium with `simd`, whose windows' segments are packed.
+template <Model M, bool kPacked, class Medium>
+RayResult preintegrated_ray(const Medium& medium, const RaySpan& span, const RenderSettings& s, double h,
+                            const Rgb& bg, bool full, const EmptySpace* es, const simd::BatchSource* simd) {
     const std::int64_t n = segment_count(span.length(), h);
     const double delta = span.length() / static_cast<double>(n);
     const SampleGrid grid{&span, delta, 0.0, 0};  // end j at t_near + j·δ
@@ -243,7 +237,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // to kWide ends.
     constexpr int kCarry = 8;
     constexpr int kWide = 3 * simd::kBatch;
-    alignas(64) double store[kCarry + kWide + 8] = {};  // preintegrate_batch reads past the last end
+    alignas(64) double store[kCarry + (kPacked ? kWide : simd::kBatch) + 8] = {};  // read past the last end
     const double* batch = store + kCarry;
     simd::Window win;
     // The segments between the window's ends, computed on the first request.
@@ -254,10 +248,9 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     // a time, from the first one requested on in the order of travel,
     // packed into whole vectors across the window's gaps (preintegrate_pack:
     // the same bits); slot[l]: segment l's place in `pack`, −1 until then.
-    const bool packed = simd != nullptr && full && !Medium::kShaded;
     constexpr int kPackChunk = simd::kBatch;
-    simd::SegmentPack pack;
-    std::array<std::int16_t, kWide + 1> slot{};
+    simd::SegmentPack pack;                    // (unused unless kPacked)
+    std::array<std::int16_t, kWide + 1> slot;  // set by load_window
     // Shaded media: the shading factors at the midpoints of those segments
     // (segment i at t_near + (i − 0.5)·δ), computed on the first request.
     simd::RayGrid mid{span.p0, span.dp, span.t_near, delta, -0.5, 0};
@@ -279,7 +272,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         std::uint64_t bits = 0;
         // with a carried end, kBatch (packed: kWide) new ones beside it
         // (after it forward, before it backward)
-        win.start_at(j, forward, run_end, carry ? (packed ? kWide : simd::kBatch) + 1 : simd::kBatch);
+        win.start_at(j, forward, run_end, carry ? (kPacked ? kWide : simd::kBatch) + 1 : simd::kBatch);
         const int k = carry ? win.count() - 1 : win.count();
         const std::int64_t j0 = carry && forward ? win.b0 + 1 : win.b0;
         if (k > 0) simd::interpolate_batch(*simd, rg, j0, k, fresh, mask ? &bits : nullptr);
@@ -296,7 +289,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
         masked = mask;
         segs_ready = false;
         shades_ready = false;
-        if (packed) {
+        if constexpr (kPacked) {
             pack.count = 0;
             std::fill(slot.begin(), slot.end(), std::int16_t{-1});
         }
@@ -409,7 +402,7 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
             };
             // The run splitter below has loaded a window holding both ends.
             auto batch_segment = [&](std::int64_t i) -> Segment {
-                if (packed) {
+                if constexpr (kPacked) {
                     const auto l = static_cast<std::size_t>(i - 1 - win.b0);
                     if (slot[l] < 0) pack_from(static_cast<int>(l));
                     const auto k = static_cast<std::size_t>(slot[l]);
@@ -471,6 +464,26 @@ RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, con
     }
     if (es == nullptr) return composite(n, s.order, s.termination, bg, segment, NoSkip{}, track);
     return composite(n, s.order, s.termination, bg, segment, next_run, track);
+}
+}  // namespace detail
+
+/// The integrator: samples the n + 1 segment ends once each and composites
+/// the segments. The scalar of a scalar medium is interpolated kBatch ends
+/// at a time with `simd`, and (unshaded) the segments between them are
+/// pre-integrated a vector at a time (simd_preint.h; the same bits; with
+/// self-attenuation, a window's wanted segments packed into whole vectors,
+/// an instantiation of its own, so that the other paths keep their smaller
+/// frame); otherwise a two-slot cache serves both orders. With `es`, runs
+/// of segments whose two ends lie in one box of empty macrocells are
+/// skipped (exact).
+template <Model M, class Medium>
+RayResult integrate_preintegrated(const Medium& medium, const RaySpan& span, const RenderSettings& s,
+                                  double h, const Rgb& bg, bool full, const EmptySpace* es,
+                                  const simd::BatchSource* simd = nullptr) {
+    if constexpr (Medium::kHasScalar && !Medium::kShaded)
+        if (simd != nullptr && full)
+            return detail::preintegrated_ray<M, true>(medium, span, s, h, bg, full, es, simd);
+    return detail::preintegrated_ray<M, false>(medium, span, s, h, bg, full, es, simd);
 }
 
 }  // namespace fathom
