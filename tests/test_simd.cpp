@@ -498,10 +498,13 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
 // Segments packed from several windows, with a step each (the packets'
 // pre-integration, simd::preintegrate_pack): every segment's bits, and the
 // segments it leaves to the scalar code, are those of preintegrate_batch over
-// the window it came from, on every target; the pack's last vector partial.
+// the window it came from, on every target; the pack's last vector partial;
+// from a later vector (`first`) too, and in a pack of two vectors or fewer
+// (each vector's ramps piece by piece). Many ramps cross several knots, so
+// that the lanes that go on past their first piece fill vectors of their own.
 TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
     std::mt19937 rng(11);
-    long compared = 0, left = 0;
+    long compared = 0, left = 0, many_pieces = 0;
     for (const auto& [name, c] : ramp_tfs()) {
         const auto& knots = c.breakpoints();
         const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
@@ -554,7 +557,37 @@ TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
                             ++pack.count;
                         }
                     ASSERT_NE(pack.count % 8, 0);
+                    // the same segments after 16 others (`first`): the same bits
+                    simd::SegmentPack later;
+                    std::fill(later.vf, later.vf + 16, knots.front());
+                    std::fill(later.vb, later.vb + 16, knots.back());
+                    std::fill(later.delta, later.delta + 16, 1.0);
+                    std::copy(pack.vf, pack.vf + pack.count, later.vf + 16);
+                    std::copy(pack.vb, pack.vb + pack.count, later.vb + 16);
+                    std::copy(pack.delta, pack.delta + pack.count, later.delta + 16);
+                    later.count = pack.count + 16;
+                    // and the first 13 alone (a pack of two vectors or fewer)
+                    simd::SegmentPack small;
+                    small.count = std::min(pack.count, 13);
+                    std::copy(pack.vf, pack.vf + small.count, small.vf);
+                    std::copy(pack.vb, pack.vb + small.count, small.vb);
+                    std::copy(pack.delta, pack.delta + small.count, small.delta);
                     simd::preintegrate_pack(src, model, full, pack);
+                    simd::preintegrate_pack(src, model, full, later, 16);
+                    simd::preintegrate_pack(src, model, full, small);
+                    auto same = [&](const simd::SegmentPack& other, int at, int count) {
+                        for (int i = 0; i < count; ++i) {
+                            ASSERT_EQ(other.scalar[at + i], pack.scalar[i]);
+                            if (pack.scalar[i] != 0.0) continue;
+                            EXPECT_EQ(std::memcmp(&other.transmittance[at + i], &pack.transmittance[i], 8),
+                                      0);
+                            for (int q = 0; q < 3; ++q)
+                                EXPECT_EQ(std::memcmp(&other.radiance[q][at + i], &pack.radiance[q][i], 8),
+                                          0);
+                        }
+                    };
+                    same(later, 16, pack.count);
+                    same(small, 0, small.count);
                     int k = 0;
                     for (const Window& win : windows) {
                         simd::SegmentBatch out;
@@ -569,6 +602,11 @@ TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
                                 ++left;
                             } else {
                                 ++compared;
+                                const double lo = std::min(win.ends[l], win.ends[l + 1]),
+                                             hi = std::max(win.ends[l], win.ends[l + 1]);
+                                const auto inner = std::count_if(knots.begin(), knots.end(),
+                                                                 [&](double v) { return lo < v && v < hi; });
+                                many_pieces += inner >= 3 ? 1 : 0;
                                 EXPECT_EQ(std::memcmp(&pack.transmittance[k], &out.transmittance[l], 8), 0);
                                 for (int q = 0; q < 3; ++q)
                                     EXPECT_EQ(std::memcmp(&pack.radiance[q][k], &out.radiance[q][l], 8), 0)
@@ -585,6 +623,8 @@ TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
     }
     EXPECT_GT(compared, 10 * left);
     EXPECT_GT(left, 0);  // the NaN end's segments
+    // ramps of four pieces and more: the pack's later rounds, in several vectors
+    EXPECT_GT(many_pieces, compared / 10);
 }
 
 TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {

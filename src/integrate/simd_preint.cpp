@@ -8,6 +8,7 @@
 #include "integrate/simd_preint.h"
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <vector>
 
@@ -170,8 +171,12 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
                              : hn::IfThenElse(last, one, u_at(hn::Div(hn::Mul(total, mv), chunks)));
             const V du = hn::Sub(u1, u0);
             for (std::size_t q = 0; q < 6; ++q) {
-                const V u = Fma(du, hn::Set(d, kX[q]), u0);
-                const V w = hn::Mul(hn::Mul(hn::Mul(len, du), hn::Set(d, kW[q])), ExpNeg(d, tau(u)));
+                const V u = Fma(du, hn::Set(d, kX[q]), u0), x = tau(u);
+                // where every lane in it is below ln 2 / 2, k = 0: no reduction
+                const V e = hn::AllFalse(d, hn::AndNot(hn::Lt(x, hn::Set(d, kNoReduction)), in))
+                                ? ExpNegSmall(d, x)
+                                : ExpNeg(d, x);
+                const V w = hn::Mul(hn::Mul(hn::Mul(len, du), hn::Set(d, kW[q])), e);
                 for (int k = 0; k < 3; ++k)
                     thick[k] = hn::IfThenElse(in, Fma(w, source(k, u), thick[k]), thick[k]);
             }
@@ -191,25 +196,44 @@ struct Segments {
     M scalar;
 };
 
-/// The lanes' segments from their ramp pieces (preintegrate_scalar's
-/// RampIntegral over for_each_ramp_piece).
-HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, bool shared, Model model, bool full, V vdelta,
-                                   V vf, V vb, M ok) {
+/// A vector of ramps vf → vb over vdelta (preintegrate_scalar's
+/// RampIntegral over for_each_ramp_piece), part way: the pieces before
+/// piece lead + m added (E, depth, T), l0 where the next one starts.
+struct Ramp {
+    V vf, vb, vdelta, l0;
+    VI first, lead, cuts, rounds;  // pieces lead … lead + rounds remain
+    V E[3], depth, T;
+    M ok, scalar;  // scalar: left to the scalar code (those not `ok` among them)
+};
+
+/// l at the cut ending piece m of each lane's ramp, where `cut` (1 past the last cut).
+HWY_INLINE V CutAt(D d, const std::vector<double>& breaks, const Ramp& r, VI m, M cut) {
+    const DI di;
+    const auto nb = static_cast<std::int64_t>(breaks.size());
+    VI at = hn::IfThenElse(hn::RebindMask(di, hn::Lt(r.vf, r.vb)), hn::Add(r.first, m), hn::Sub(r.first, m));
+    at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
+    const V knot = gather::Doubles(d, breaks.data(), at);
+    return hn::IfThenElse(cut, hn::Div(hn::Sub(knot, r.vf), hn::Sub(r.vb, r.vf)),
+                          hn::Set(d, 1.0));  // = (vf − k)/(vf − vb)
+}
+
+/// The ramps of the lanes `ok`, before their first piece.
+HWY_INLINE Ramp StartRamp(D d, const BatchSource& src, V vdelta, V vf, V vb, M ok) {
     const DI di;
     const std::vector<double>& breaks = *src.breaks;
-    const auto nb = static_cast<std::int64_t>(breaks.size());
-    const bool absorb = model != Model::emission, source = model != Model::absorption;
-    const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
-    const std::size_t N = hn::Lanes(d);
+    const V zero = hn::Zero(d);
+    Ramp r;
+    r.vf = vf;
+    r.vb = vb;
+    r.vdelta = vdelta;
+    r.ok = ok;
     // the control values strictly between the ends, in the order the ramp meets them
     const M ascending = hn::Lt(vf, vb);
     const V lo = hn::IfThenElse(ascending, vf, vb), hi = hn::IfThenElse(ascending, vb, vf);
     const VI below_hi = Count<true>(d, breaks, hi), upto_lo = Count<false>(d, breaks, lo);
-    const VI cuts =
-        hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))), hn::Sub(below_hi, upto_lo));
+    r.cuts = hn::IfThenElseZero(hn::RebindMask(di, hn::And(ok, hn::Ne(vf, vb))), hn::Sub(below_hi, upto_lo));
     // the first cut: the first knot > vf (ascending) or the last < vf
-    const VI first =
-        hn::IfThenElse(hn::RebindMask(di, ascending), upto_lo, hn::Sub(below_hi, hn::Set(di, 1)));
+    r.first = hn::IfThenElse(hn::RebindMask(di, ascending), upto_lo, hn::Sub(below_hi, hn::Set(di, 1)));
     // Pieces wholly below the medium's zero range add nothing: their σ and
     // g are exactly zero, so E and the depth stay, and so does T = e^{−depth}
     // (1 before the first piece). The ramp leaves them out: those that end
@@ -217,69 +241,87 @@ HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, bool shared, Mod
     // after the last (descending). Pieces m = lead … lead + rounds remain.
     const auto at_most_e = static_cast<std::int64_t>(
         std::upper_bound(breaks.begin(), breaks.end(), src.zero_below) - breaks.begin());
-    const VI zeros = hn::Min(hn::Max(hn::Sub(hn::Set(di, at_most_e), upto_lo), hn::Zero(di)), cuts);
-    const VI lead = hn::IfThenElseZero(hn::RebindMask(di, ascending), zeros), rounds = hn::Sub(cuts, zeros);
+    const VI zeros = hn::Min(hn::Max(hn::Sub(hn::Set(di, at_most_e), upto_lo), hn::Zero(di)), r.cuts);
+    r.lead = hn::IfThenElseZero(hn::RebindMask(di, ascending), zeros);
+    r.rounds = hn::Sub(r.cuts, zeros);
+    for (V& e : r.E) e = zero;
+    r.depth = zero;
+    r.T = hn::Set(d, 1.0);
+    const M skips = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Zero(di), r.lead)));
+    r.l0 = hn::AllFalse(d, skips)
+               ? zero
+               : hn::IfThenElse(skips, CutAt(d, breaks, r, hn::Sub(r.lead, hn::Set(di, 1)), skips), zero);
+    r.scalar = hn::Not(ok);
+    return r;
+}
+
+/// The most pieces after the first of any lane of r.
+HWY_INLINE std::int64_t MostRounds(D d, const Ramp& r) {
+    const DI di;
     HWY_ALIGN std::int64_t round_count[hn::MaxLanes(d)];
-    hn::Store(rounds, di, round_count);
-    const std::int64_t most = *std::max_element(round_count, round_count + N);
-    const V span = hn::Sub(vb, vf);
-    // l at the cut ending piece m, ramp by ramp (1 past the last cut)
-    auto cut_at = [&](VI m, M cut) {
-        VI at = hn::IfThenElse(hn::RebindMask(di, ascending), hn::Add(first, m), hn::Sub(first, m));
-        at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
-        const V knot = gather::Doubles(d, breaks.data(), at);
-        return hn::IfThenElse(cut, hn::Div(hn::Sub(knot, vf), span), one);  // = (vf − k)/(vf − vb)
-    };
-    V E[3] = {zero, zero, zero};
-    V depth = zero, T = one;
-    const M skips = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Zero(di), lead)));
-    V l0 = hn::AllFalse(d, skips) ? zero
-                                  : hn::IfThenElse(skips, cut_at(hn::Sub(lead, hn::Set(di, 1)), skips), zero);
-    M scalar = hn::Not(ok);
-    for (std::int64_t m = 0; m <= most; ++m) {
-        const M active = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), rounds)));
-        const VI piece = hn::Add(lead, hn::Set(di, m));
-        const M cut = hn::And(active, hn::RebindMask(d, hn::Lt(piece, cuts)));
-        const V l1 = hn::AllFalse(d, cut) ? one : cut_at(piece, cut);
-        // for_each_ramp_piece's piece(l0, l1)
-        const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
-        const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
-        // (σ's knots shared by c: one count, the same positions)
-        const VI at_vm = Count<false>(d, src.sigma->knots, vm);
-        const Piece ps(d, *src.sigma, at_vm),
-            pc = shared ? Piece(d, *src.color, at_vm) : Piece(d, *src.color, vm);
-        const V ws0 = ps.weight(v0), ws1 = ps.weight(v1);
-        V s0 = ps.at(0, ws0), s1 = ps.at(0, ws1);
-        const V w0 = shared ? ws0 : pc.weight(v0), w1 = shared ? ws1 : pc.weight(v1);
-        V a[3], bq[3], cq[3];
-        for (int k = 0; k < 3; ++k) {
-            const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
-            if (!source) {
-                a[k] = bq[k] = cq[k] = zero;
-            } else if (src.associated) {  // emission_source
-                a[k] = c0;
-                bq[k] = hn::Sub(c1, c0);
-                cq[k] = zero;
-            } else {  // particle_source
-                a[k] = hn::Mul(s0, c0);
-                bq[k] = Fma(s0, hn::Sub(c1, c0), hn::Mul(c0, hn::Sub(s1, s0)));
-                cq[k] = hn::Mul(hn::Sub(s1, s0), hn::Sub(c1, c0));
-            }
+    hn::Store(r.rounds, di, round_count);
+    return *std::max_element(round_count, round_count + hn::Lanes(d));
+}
+
+/// Adds piece lead + m of each lane that has it (for_each_ramp_piece's
+/// piece(l0, l1), then RampIntegral::add).
+HWY_INLINE void AddPiece(D d, const BatchSource& src, bool shared, Model model, bool full, Ramp& r,
+                         std::int64_t m) {
+    const DI di;
+    const bool absorb = model != Model::emission, source = model != Model::absorption;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
+    const V span = hn::Sub(r.vb, r.vf), vf = r.vf;
+    const M active = hn::And(r.ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), r.rounds)));
+    const VI piece = hn::Add(r.lead, hn::Set(di, m));
+    const M cut = hn::And(active, hn::RebindMask(d, hn::Lt(piece, r.cuts)));
+    const V l0 = r.l0, l1 = hn::AllFalse(d, cut) ? one : CutAt(d, *src.breaks, r, piece, cut);
+    // for_each_ramp_piece's piece(l0, l1)
+    const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
+    const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));
+    // (σ's knots shared by c: one count, the same positions)
+    const VI at_vm = Count<false>(d, src.sigma->knots, vm);
+    const Piece ps(d, *src.sigma, at_vm),
+        pc = shared ? Piece(d, *src.color, at_vm) : Piece(d, *src.color, vm);
+    const V ws0 = ps.weight(v0), ws1 = ps.weight(v1);
+    V s0 = ps.at(0, ws0), s1 = ps.at(0, ws1);
+    const V w0 = shared ? ws0 : pc.weight(v0), w1 = shared ? ws1 : pc.weight(v1);
+    V a[3], bq[3], cq[3];
+    for (int k = 0; k < 3; ++k) {
+        const V c0 = pc.at(k, w0), c1 = pc.at(k, w1);
+        if (!source) {
+            a[k] = bq[k] = cq[k] = zero;
+        } else if (src.associated) {  // emission_source
+            a[k] = c0;
+            bq[k] = hn::Sub(c1, c0);
+            cq[k] = zero;
+        } else {  // particle_source
+            a[k] = hn::Mul(s0, c0);
+            bq[k] = Fma(s0, hn::Sub(c1, c0), hn::Mul(c0, hn::Sub(s1, s0)));
+            cq[k] = hn::Mul(hn::Sub(s1, s0), hn::Sub(c1, c0));
         }
-        if (!absorb) s0 = s1 = zero;
-        // RampIntegral::add
-        const PieceOut r = IntegratePiece(d, hn::Mul(hn::Sub(l1, l0), vdelta), s0, s1, a, bq, cq, full);
-        for (int k = 0; k < 3; ++k)
-            E[k] = hn::IfThenElse(active, Fma(full ? T : one, r.radiance[k], E[k]), E[k]);
-        depth = hn::IfThenElse(active, hn::Add(depth, r.depth), depth);
-        scalar = hn::Or(scalar, hn::And(active, hn::Or(r.scalar, hn::Not(InRange(d, depth)))));
-        // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
-        const V t = hn::AllTrue(d, hn::Lt(depth, hn::Set(d, kNoReduction))) ? ExpNegSmall(d, depth)
-                                                                            : ExpNeg(d, depth);
-        T = hn::IfThenElse(active, t, T);
-        l0 = l1;
     }
-    return {T, {E[0], E[1], E[2]}, scalar};
+    if (!absorb) s0 = s1 = zero;
+    // RampIntegral::add
+    const PieceOut o = IntegratePiece(d, hn::Mul(hn::Sub(l1, l0), r.vdelta), s0, s1, a, bq, cq, full);
+    for (int k = 0; k < 3; ++k)
+        r.E[k] = hn::IfThenElse(active, Fma(full ? r.T : one, o.radiance[k], r.E[k]), r.E[k]);
+    r.depth = hn::IfThenElse(active, hn::Add(r.depth, o.depth), r.depth);
+    r.scalar = hn::Or(r.scalar, hn::And(active, hn::Or(o.scalar, hn::Not(InRange(d, r.depth)))));
+    // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
+    const V t = hn::AllTrue(d, hn::Lt(r.depth, hn::Set(d, kNoReduction))) ? ExpNegSmall(d, r.depth)
+                                                                          : ExpNeg(d, r.depth);
+    r.T = hn::IfThenElse(active, t, r.T);
+    r.l0 = l1;
+}
+
+/// The lanes' segments from their ramp pieces (preintegrate_scalar's
+/// RampIntegral over for_each_ramp_piece).
+HWY_NOINLINE Segments RampSegments(D d, const BatchSource& src, bool shared, Model model, bool full, V vdelta,
+                                   V vf, V vb, M ok) {
+    Ramp r = StartRamp(d, src, vdelta, vf, vb, ok);
+    const std::int64_t most = MostRounds(d, r);
+    for (std::int64_t m = 0; m <= most; ++m) AddPiece(d, src, shared, model, full, r, m);
+    return {r.T, {r.E[0], r.E[1], r.E[2]}, r.scalar};
 }
 
 /// One column of the integral functions at rows p (a lane permutation of
@@ -398,8 +440,56 @@ void PreintegrateBatch(const BatchSource& src, Model model, bool full, double de
     }
 }
 
+/// Ramps lane by lane: those of a pack that go on past their first piece,
+/// gathered from the pack's vectors into whole ones (slot: the segment's
+/// place in the pack), or one vector's.
+template <std::size_t kSize>
+struct RampLanes {
+    HWY_ALIGN double vf[kSize], vb[kSize], delta[kSize], l0[kSize], E[3][kSize], depth[kSize], T[kSize];
+    HWY_ALIGN double scalar[kSize];
+    HWY_ALIGN std::int64_t first[kSize], lead[kSize], cuts[kSize], rounds[kSize], slot[kSize];
+    std::size_t count = 0;
+};
+
+/// Stores r's lanes into `at` (arrays of whole vectors, from lane 0 on).
+template <std::size_t kSize>
+HWY_INLINE void StoreRamp(D d, const Ramp& r, RampLanes<kSize>& at, std::size_t b) {
+    const DI di;
+    hn::Store(r.vf, d, at.vf + b);
+    hn::Store(r.vb, d, at.vb + b);
+    hn::Store(r.vdelta, d, at.delta + b);
+    hn::Store(r.l0, d, at.l0 + b);
+    for (int k = 0; k < 3; ++k) hn::Store(r.E[k], d, at.E[k] + b);
+    hn::Store(r.depth, d, at.depth + b);
+    hn::Store(r.T, d, at.T + b);
+    hn::Store(hn::IfThenElseZero(r.scalar, hn::Set(d, 1.0)), d, at.scalar + b);
+    hn::Store(r.first, di, at.first + b);
+    hn::Store(r.lead, di, at.lead + b);
+    hn::Store(r.cuts, di, at.cuts + b);
+    hn::Store(r.rounds, di, at.rounds + b);
+}
+
+/// Copies lane i of `from` to lane j of `to` (j ≤ i where they are one).
+template <std::size_t kFrom, std::size_t kTo>
+HWY_INLINE void MoveLane(const RampLanes<kFrom>& from, std::size_t i, RampLanes<kTo>& to, std::size_t j) {
+    to.vf[j] = from.vf[i];
+    to.vb[j] = from.vb[i];
+    to.delta[j] = from.delta[i];
+    to.l0[j] = from.l0[i];
+    for (int k = 0; k < 3; ++k) to.E[k][j] = from.E[k][i];
+    to.depth[j] = from.depth[i];
+    to.T[j] = from.T[i];
+    to.scalar[j] = from.scalar[i];
+    to.first[j] = from.first[i];
+    to.lead[j] = from.lead[i];
+    to.cuts[j] = from.cuts[i];
+    to.rounds[j] = from.rounds[i];
+    to.slot[j] = from.slot[i];
+}
+
 void PreintegratePack(const BatchSource& src, Model model, bool full, SegmentPack& pack, int first) {
     const D d;
+    const DI di;
     const std::size_t N = hn::Lanes(d);
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
     const auto n = static_cast<std::size_t>(pack.count);
@@ -410,6 +500,71 @@ void PreintegratePack(const BatchSource& src, Model model, bool full, SegmentPac
     }
     const IntegralFunctions* f = integrals_of(src, full);
     const bool absorb = model != Model::emission, source = model != Model::absorption;
+    if (f == nullptr && n - b0 > 2 * N) {
+        // Every segment takes its ramp's pieces, in more than two vectors:
+        // each vector adds its lanes' first pieces; the lanes with more go
+        // on together, gathered into whole vectors, a piece at a time (the
+        // same operations per lane as RampSegments' rounds, so the same
+        // bits). (In two vectors or fewer, each does all its rounds: too few
+        // lanes go on to fill a vector.)
+        RampLanes<SegmentPack::kPadded> more;
+        RampLanes<hn::MaxLanes(d)> lanes;
+        for (std::size_t b = b0; b < n; b += N) {
+            const M in = hn::FirstN(d, n - b);  // the lanes past the last: zeros, not used
+            const V vf = hn::IfThenElseZero(in, hn::Load(d, pack.vf + b)),
+                    vb = hn::IfThenElseZero(in, hn::Load(d, pack.vb + b));
+            const M ok = hn::And(in, hn::And(hn::IsFinite(vf), hn::IsFinite(vb)));
+            Ramp r = StartRamp(d, src, hn::IfThenElseZero(in, hn::Load(d, pack.delta + b)), vf, vb, ok);
+            AddPiece(d, src, src.shared_knots, model, full, r, 0);
+            hn::Store(r.T, d, pack.transmittance + b);
+            for (int k = 0; k < 3; ++k) hn::Store(r.E[k], d, pack.radiance[k] + b);
+            hn::Store(hn::IfThenElseZero(r.scalar, one), d, pack.scalar + b);
+            const M on = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Zero(di), r.rounds)));
+            if (hn::AllFalse(d, on)) continue;
+            StoreRamp(d, r, lanes, 0);
+            std::uint8_t bits[8] = {};
+            hn::StoreMaskBits(d, on, bits);
+            for (unsigned left = bits[0]; left != 0; left &= left - 1) {
+                const auto l = static_cast<std::size_t>(std::countr_zero(left));
+                lanes.slot[l] = static_cast<std::int64_t>(b + l);
+                MoveLane(lanes, l, more, more.count++);
+            }
+        }
+        for (std::int64_t m = 1; more.count > 0; ++m) {
+            const std::size_t count = more.count;
+            more.count = 0;  // the lanes that go on after this round, in place
+            for (std::size_t b = 0; b < count; b += N) {
+                // (the lanes past the last: zeros, as in the pack's vectors, not used)
+                Ramp r;
+                r.ok = hn::FirstN(d, count - b);
+                const auto ok = hn::RebindMask(di, r.ok);
+                r.vf = hn::IfThenElseZero(r.ok, hn::Load(d, more.vf + b));
+                r.vb = hn::IfThenElseZero(r.ok, hn::Load(d, more.vb + b));
+                r.vdelta = hn::IfThenElseZero(r.ok, hn::Load(d, more.delta + b));
+                r.l0 = hn::IfThenElseZero(r.ok, hn::Load(d, more.l0 + b));
+                for (int k = 0; k < 3; ++k) r.E[k] = hn::IfThenElseZero(r.ok, hn::Load(d, more.E[k] + b));
+                r.depth = hn::IfThenElseZero(r.ok, hn::Load(d, more.depth + b));
+                r.T = hn::IfThenElse(r.ok, hn::Load(d, more.T + b), one);
+                r.scalar = hn::Ne(hn::Load(d, more.scalar + b), zero);
+                r.first = hn::IfThenElseZero(ok, hn::Load(di, more.first + b));
+                r.lead = hn::IfThenElseZero(ok, hn::Load(di, more.lead + b));
+                r.cuts = hn::IfThenElseZero(ok, hn::Load(di, more.cuts + b));
+                r.rounds = hn::IfThenElseZero(ok, hn::Load(di, more.rounds + b));
+                AddPiece(d, src, src.shared_knots, model, full, r, m);
+                StoreRamp(d, r, lanes, 0);
+                const std::size_t in = std::min(N, count - b);
+                for (std::size_t l = 0; l < in; ++l) {
+                    lanes.slot[l] = more.slot[b + l];
+                    const auto k = static_cast<std::size_t>(lanes.slot[l]);
+                    pack.transmittance[k] = lanes.T[l];
+                    for (int c = 0; c < 3; ++c) pack.radiance[c][k] = lanes.E[c][l];
+                    pack.scalar[k] = lanes.scalar[l];
+                    if (lanes.rounds[l] > m) MoveLane(lanes, l, more, more.count++);
+                }
+            }
+        }
+        return;
+    }
     for (std::size_t b = b0; b < n; b += N) {
         const M in = hn::FirstN(d, n - b);  // the lanes past the last: zeros, not used
         const V vf = hn::IfThenElseZero(in, hn::Load(d, pack.vf + b)),
