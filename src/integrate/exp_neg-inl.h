@@ -113,6 +113,14 @@ HWY_INLINE V ExpNegSmall(D d, V x) {
     return Taylor(d, hn::Neg(x), 0);
 }
 
+/// exp_neg(x) per lane where `used` (the others' values not used), without
+/// the reduction where every such lane lies below kNoReduction (thin
+/// pieces): the same bits either way.
+HWY_INLINE V ExpNegOf(D d, V x, M used) {
+    return hn::AllFalse(d, hn::AndNot(hn::Lt(x, hn::Set(d, kNoReduction)), used)) ? ExpNegSmall(d, x)
+                                                                                  : ExpNeg(d, x);
+}
+
 /// exp_neg_thin(x) per lane (0 ≤ x ≤ 1/4).
 HWY_INLINE V ExpNegThin(D d, V x) {
     using preint::exp_detail::kTaylor;

@@ -171,12 +171,8 @@ HWY_INLINE PieceOut IntegratePiece(D d, V len, V s0, V s1, const V* a, const V* 
                              : hn::IfThenElse(last, one, u_at(hn::Div(hn::Mul(total, mv), chunks)));
             const V du = hn::Sub(u1, u0);
             for (std::size_t q = 0; q < 6; ++q) {
-                const V u = Fma(du, hn::Set(d, kX[q]), u0), x = tau(u);
-                // where every lane in it is below ln 2 / 2, k = 0: no reduction
-                const V e = hn::AllFalse(d, hn::AndNot(hn::Lt(x, hn::Set(d, kNoReduction)), in))
-                                ? ExpNegSmall(d, x)
-                                : ExpNeg(d, x);
-                const V w = hn::Mul(hn::Mul(hn::Mul(len, du), hn::Set(d, kW[q])), e);
+                const V u = Fma(du, hn::Set(d, kX[q]), u0);
+                const V w = hn::Mul(hn::Mul(hn::Mul(len, du), hn::Set(d, kW[q])), ExpNegOf(d, tau(u), in));
                 for (int k = 0; k < 3; ++k)
                     thick[k] = hn::IfThenElse(in, Fma(w, source(k, u), thick[k]), thick[k]);
             }
@@ -307,10 +303,7 @@ HWY_INLINE void AddPiece(D d, const BatchSource& src, bool shared, Model model, 
         r.E[k] = hn::IfThenElse(active, Fma(full ? r.T : one, o.radiance[k], r.E[k]), r.E[k]);
     r.depth = hn::IfThenElse(active, hn::Add(r.depth, o.depth), r.depth);
     r.scalar = hn::Or(r.scalar, hn::And(active, hn::Or(o.scalar, hn::Not(InRange(d, r.depth)))));
-    // where every depth is below ln 2 / 2 (thin pieces), k = 0: no reduction
-    const V t = hn::AllTrue(d, hn::Lt(r.depth, hn::Set(d, kNoReduction))) ? ExpNegSmall(d, r.depth)
-                                                                          : ExpNeg(d, r.depth);
-    r.T = hn::IfThenElse(active, t, r.T);
+    r.T = hn::IfThenElse(active, ExpNegOf(d, r.depth, hn::FirstN(d, hn::Lanes(d))), r.T);
     r.l0 = l1;
 }
 
@@ -469,6 +462,29 @@ HWY_INLINE void StoreRamp(D d, const Ramp& r, RampLanes<kSize>& at, std::size_t 
     hn::Store(r.rounds, di, at.rounds + b);
 }
 
+/// The lanes b … b + N − 1 of `at` that `ok` holds (the first ones), the
+/// others zeros with T = 1, as in a pack's last vector: StoreRamp's inverse.
+template <std::size_t kSize>
+HWY_INLINE Ramp LoadRamp(D d, const RampLanes<kSize>& at, std::size_t b, M ok) {
+    const DI di;
+    const auto oki = hn::RebindMask(di, ok);
+    Ramp r;
+    r.ok = ok;
+    r.vf = hn::IfThenElseZero(ok, hn::Load(d, at.vf + b));
+    r.vb = hn::IfThenElseZero(ok, hn::Load(d, at.vb + b));
+    r.vdelta = hn::IfThenElseZero(ok, hn::Load(d, at.delta + b));
+    r.l0 = hn::IfThenElseZero(ok, hn::Load(d, at.l0 + b));
+    for (int k = 0; k < 3; ++k) r.E[k] = hn::IfThenElseZero(ok, hn::Load(d, at.E[k] + b));
+    r.depth = hn::IfThenElseZero(ok, hn::Load(d, at.depth + b));
+    r.T = hn::IfThenElse(ok, hn::Load(d, at.T + b), hn::Set(d, 1.0));
+    r.scalar = hn::Ne(hn::Load(d, at.scalar + b), hn::Zero(d));
+    r.first = hn::IfThenElseZero(oki, hn::Load(di, at.first + b));
+    r.lead = hn::IfThenElseZero(oki, hn::Load(di, at.lead + b));
+    r.cuts = hn::IfThenElseZero(oki, hn::Load(di, at.cuts + b));
+    r.rounds = hn::IfThenElseZero(oki, hn::Load(di, at.rounds + b));
+    return r;
+}
+
 /// Copies lane i of `from` to lane j of `to` (j ≤ i where they are one).
 template <std::size_t kFrom, std::size_t kTo>
 HWY_INLINE void MoveLane(const RampLanes<kFrom>& from, std::size_t i, RampLanes<kTo>& to, std::size_t j) {
@@ -534,22 +550,7 @@ void PreintegratePack(const BatchSource& src, Model model, bool full, SegmentPac
             const std::size_t count = more.count;
             more.count = 0;  // the lanes that go on after this round, in place
             for (std::size_t b = 0; b < count; b += N) {
-                // (the lanes past the last: zeros, as in the pack's vectors, not used)
-                Ramp r;
-                r.ok = hn::FirstN(d, count - b);
-                const auto ok = hn::RebindMask(di, r.ok);
-                r.vf = hn::IfThenElseZero(r.ok, hn::Load(d, more.vf + b));
-                r.vb = hn::IfThenElseZero(r.ok, hn::Load(d, more.vb + b));
-                r.vdelta = hn::IfThenElseZero(r.ok, hn::Load(d, more.delta + b));
-                r.l0 = hn::IfThenElseZero(r.ok, hn::Load(d, more.l0 + b));
-                for (int k = 0; k < 3; ++k) r.E[k] = hn::IfThenElseZero(r.ok, hn::Load(d, more.E[k] + b));
-                r.depth = hn::IfThenElseZero(r.ok, hn::Load(d, more.depth + b));
-                r.T = hn::IfThenElse(r.ok, hn::Load(d, more.T + b), one);
-                r.scalar = hn::Ne(hn::Load(d, more.scalar + b), zero);
-                r.first = hn::IfThenElseZero(ok, hn::Load(di, more.first + b));
-                r.lead = hn::IfThenElseZero(ok, hn::Load(di, more.lead + b));
-                r.cuts = hn::IfThenElseZero(ok, hn::Load(di, more.cuts + b));
-                r.rounds = hn::IfThenElseZero(ok, hn::Load(di, more.rounds + b));
+                Ramp r = LoadRamp(d, more, b, hn::FirstN(d, count - b));
                 AddPiece(d, src, src.shared_knots, model, full, r, m);
                 StoreRamp(d, r, lanes, 0);
                 const std::size_t in = std::min(N, count - b);
