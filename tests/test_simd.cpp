@@ -502,14 +502,20 @@ TEST(SimdPreint, EverySegmentMatchesTheScalarCode) {
 // from a later vector (`first`) too, and in a pack of two vectors or fewer
 // (each vector's ramps piece by piece). Many ramps cross several knots, so
 // that the lanes that go on past their first piece fill vectors of their own.
+// The packs pick their cuts' control values from the padded table where
+// they fit (BatchSource::break_table, as the renderer sets it), the windows
+// gather them: the same bits.
 TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
     std::mt19937 rng(11);
     long compared = 0, left = 0, many_pieces = 0;
+    int tables = 0;
     for (const auto& [name, c] : ramp_tfs()) {
         const auto& knots = c.breakpoints();
         const simd::FlatFunction fs = simd::flatten(c.sigma_function()),
                                  fc = simd::flatten(c.color_function());
         simd::BatchSource src = preint_source(c, fs, fc);
+        const simd::BreakTable table(knots);
+        tables += table.get() != nullptr ? 1 : 0;
         std::uniform_real_distribution<double> any(knots.front() - 20, knots.back() + 20);
         std::uniform_int_distribution<std::size_t> pick(0, knots.size() - 1);
         // five windows of 2 … kBatch + 1 ends, each with its own step
@@ -544,6 +550,8 @@ TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
         }
         for (Model model : {Model::emission_absorption, Model::absorption, Model::emission}) {
             src.zero_below = zero_below(c, model);
+            simd::BatchSource packed = src;
+            packed.break_table = table.get();
             for (bool full : {true, false})
                 for (auto t : simd::available_targets()) {
                     simd::force_target(t);
@@ -572,9 +580,9 @@ TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
                     std::copy(pack.vf, pack.vf + small.count, small.vf);
                     std::copy(pack.vb, pack.vb + small.count, small.vb);
                     std::copy(pack.delta, pack.delta + small.count, small.delta);
-                    simd::preintegrate_pack(src, model, full, pack);
-                    simd::preintegrate_pack(src, model, full, later, 16);
-                    simd::preintegrate_pack(src, model, full, small);
+                    simd::preintegrate_pack(packed, model, full, pack);
+                    simd::preintegrate_pack(packed, model, full, later, 16);
+                    simd::preintegrate_pack(packed, model, full, small);
                     auto same = [&](const simd::SegmentPack& other, int at, int count) {
                         for (int i = 0; i < count; ++i) {
                             ASSERT_EQ(other.scalar[at + i], pack.scalar[i]);
@@ -625,6 +633,7 @@ TEST(SimdPreint, PackedSegmentsMatchTheirWindowsBitForBit) {
     EXPECT_GT(left, 0);  // the NaN end's segments
     // ramps of four pieces and more: the pack's later rounds, in several vectors
     EXPECT_GT(many_pieces, compared / 10);
+    EXPECT_GE(tables, 3);  // all but "many" (40 control values) and CT-Bone
 }
 
 TEST(SimdPreint, ExpNegIsWithinAFewUlpOfLibm) {

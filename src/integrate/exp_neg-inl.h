@@ -61,6 +61,45 @@ HWY_INLINE V PiecePosition(V v, V k0, V inv) {
     return hn::Mul(hn::Sub(v, k0), inv);
 }
 
+/// The number of the first N of `keys` below v (kStrict) or at most v, per
+/// lane, as int64 lanes: unrolled, a masked increment per key.
+template <bool kStrict, std::size_t N>
+HWY_INLINE VI CountKeysN(D d, const double* keys, V v) {
+    const DI di;
+    const VI one = hn::Set(di, 1);
+    VI c = hn::Zero(di);
+    for (std::size_t k = 0; k < N; ++k) {
+        const M m = kStrict ? hn::Lt(hn::Set(d, keys[k]), v) : hn::Le(hn::Set(d, keys[k]), v);
+        c = hn::IfThenElse(hn::RebindMask(di, m), hn::Add(c, one), c);
+    }
+    return c;
+}
+
+/// The number of the n ≤ 8 `keys` below v (kStrict) or at most v, per lane.
+template <bool kStrict>
+HWY_INLINE VI CountKeys(D d, const double* keys, std::size_t n, V v) {
+    switch (n) {
+        case 0:
+            return hn::Zero(DI());
+        case 1:
+            return CountKeysN<kStrict, 1>(d, keys, v);
+        case 2:
+            return CountKeysN<kStrict, 2>(d, keys, v);
+        case 3:
+            return CountKeysN<kStrict, 3>(d, keys, v);
+        case 4:
+            return CountKeysN<kStrict, 4>(d, keys, v);
+        case 5:
+            return CountKeysN<kStrict, 5>(d, keys, v);
+        case 6:
+            return CountKeysN<kStrict, 6>(d, keys, v);
+        case 7:
+            return CountKeysN<kStrict, 7>(d, keys, v);
+        default:
+            return CountKeysN<kStrict, 8>(d, keys, v);
+    }
+}
+
 /// taylor_estrin(r, from) per lane.
 HWY_INLINE V Taylor(D d, V r, std::size_t from) {
     using preint::exp_detail::kTaylor;

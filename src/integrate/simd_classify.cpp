@@ -46,9 +46,7 @@ struct KnotPiece {
     KnotPiece(D d, const FlatFunction& f, V v) {
         const hn::RebindToSigned<D> di;
         const std::size_t n = f.knots.size();
-        auto i = hn::Zero(di);
-        for (std::size_t k = 0; k < n; ++k)
-            i = hn::Sub(i, hn::VecFromMask(di, hn::RebindMask(di, hn::Le(hn::Set(d, f.knots[k]), v))));
+        const auto i = exp_v::CountKeys<false>(d, f.knots.data(), n, v);
         lo = hn::IndicesFromVec(d, hn::Max(hn::Sub(i, hn::Set(di, 1)), hn::Zero(di)));
         hi = hn::IndicesFromVec(d, hn::Min(i, hn::Set(di, static_cast<std::int64_t>(n - 1))));
         const V below = hn::TableLookupLanes(hn::LoadU(d, f.table[0]), lo);

@@ -58,6 +58,23 @@ struct FlatFunction {
     alignas(64) double table[5][kTable] = {};
 };
 
+/// A transfer function's control values (Classifier::breakpoints) padded
+/// to FlatFunction::kTable with the last, for lane permutations
+/// (BatchSource::break_table), where they fit.
+struct BreakTable {
+    alignas(64) double values[FlatFunction::kTable] = {};
+    bool fits = false;
+    BreakTable() = default;
+    explicit BreakTable(const std::vector<double>& breaks)
+        : fits(!breaks.empty() && breaks.size() <= FlatFunction::kTable) {
+        if (!fits) return;
+        for (std::size_t i = 0; i < FlatFunction::kTable; ++i)
+            values[i] = breaks[std::min(i, breaks.size() - 1)];
+    }
+    /// The table, or nullptr where the values do not fit.
+    [[nodiscard]] const double* get() const { return fits ? values : nullptr; }
+};
+
 /// A point-sampled quadrature's segment rule (integrate/point_rules.h) that
 /// classify_batch also applies, lane by lane, after the model.
 enum class PointRule : std::uint8_t { none, riemann, alpha };
@@ -81,6 +98,10 @@ struct BatchSource {
     /// For pre-integration (simd_preint.h): the transfer function's control
     /// values (Classifier::breakpoints) and whether color is an emission q.
     const std::vector<double>* breaks = nullptr;
+    /// Optional (nullptr: none): `breaks` padded to FlatFunction::kTable
+    /// with the last, 64-byte aligned, where they fit (break_table()): the
+    /// ramp's cuts pick their control value by lane permutation.
+    const double* break_table = nullptr;
     bool associated = false;
     /// Optional (nullptr: the ramp's pieces): the transfer function's
     /// integral functions (Classifier::integrals), for the segments without

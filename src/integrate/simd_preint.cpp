@@ -31,6 +31,7 @@ using namespace exp_v;  // hn, the vector types D, V, M, DI, VI and the exponent
 template <bool kStrict>
 HWY_INLINE VI Count(D d, const std::vector<double>& keys, V v) {
     const DI di;
+    if (keys.size() <= 8) return CountKeys<kStrict>(d, keys.data(), keys.size(), v);
     if (keys.size() <= 32) {
         VI c = hn::Zero(di);
         for (double k : keys) {
@@ -203,12 +204,15 @@ struct Ramp {
 };
 
 /// l at the cut ending piece m of each lane's ramp, where `cut` (1 past the last cut).
-HWY_INLINE V CutAt(D d, const std::vector<double>& breaks, const Ramp& r, VI m, M cut) {
+HWY_INLINE V CutAt(D d, const BatchSource& src, const Ramp& r, VI m, M cut) {
     const DI di;
+    const std::vector<double>& breaks = *src.breaks;
     const auto nb = static_cast<std::int64_t>(breaks.size());
     VI at = hn::IfThenElse(hn::RebindMask(di, hn::Lt(r.vf, r.vb)), hn::Add(r.first, m), hn::Sub(r.first, m));
     at = hn::Min(hn::Max(at, hn::Zero(di)), hn::Set(di, nb - 1));
-    const V knot = gather::Doubles(d, breaks.data(), at);
+    const V knot = src.break_table != nullptr && breaks.size() <= hn::Lanes(d)
+                       ? hn::TableLookupLanes(hn::Load(d, src.break_table), hn::IndicesFromVec(d, at))
+                       : gather::Doubles(d, breaks.data(), at);
     return hn::IfThenElse(cut, hn::Div(hn::Sub(knot, r.vf), hn::Sub(r.vb, r.vf)),
                           hn::Set(d, 1.0));  // = (vf − k)/(vf − vb)
 }
@@ -246,7 +250,7 @@ HWY_INLINE Ramp StartRamp(D d, const BatchSource& src, V vdelta, V vf, V vb, M o
     const M skips = hn::And(ok, hn::RebindMask(d, hn::Lt(hn::Zero(di), r.lead)));
     r.l0 = hn::AllFalse(d, skips)
                ? zero
-               : hn::IfThenElse(skips, CutAt(d, breaks, r, hn::Sub(r.lead, hn::Set(di, 1)), skips), zero);
+               : hn::IfThenElse(skips, CutAt(d, src, r, hn::Sub(r.lead, hn::Set(di, 1)), skips), zero);
     r.scalar = hn::Not(ok);
     return r;
 }
@@ -270,7 +274,7 @@ HWY_INLINE void AddPiece(D d, const BatchSource& src, bool shared, Model model, 
     const M active = hn::And(r.ok, hn::RebindMask(d, hn::Lt(hn::Set(di, m - 1), r.rounds)));
     const VI piece = hn::Add(r.lead, hn::Set(di, m));
     const M cut = hn::And(active, hn::RebindMask(d, hn::Lt(piece, r.cuts)));
-    const V l0 = r.l0, l1 = hn::AllFalse(d, cut) ? one : CutAt(d, *src.breaks, r, piece, cut);
+    const V l0 = r.l0, l1 = hn::AllFalse(d, cut) ? one : CutAt(d, src, r, piece, cut);
     // for_each_ramp_piece's piece(l0, l1)
     const V v0 = hn::Add(vf, hn::Mul(l0, span)), v1 = hn::Add(vf, hn::Mul(l1, span));
     const V vm = hn::Mul(hn::Set(d, 0.5), hn::Add(v0, v1));

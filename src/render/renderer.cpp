@@ -177,6 +177,8 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
                  volume.dims()[2], &flat_sigma,    &flat_color,      zero_below(tf, s.model)};
         batch.shared_knots = simd::same_knots(flat_sigma, flat_color);
         batch.breaks = &tf.breakpoints();
+        break_table = simd::BreakTable(tf.breakpoints());
+        batch.break_table = break_table.get();
         batch.integrals = &tf.integrals();
         batch.associated = tf.associated();
         const bool point_sampled = s.integrator == IntegratorKind::alpha ||

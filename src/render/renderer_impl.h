@@ -50,6 +50,7 @@ struct Renderer::Impl {
     EmptySpace empty_space;
     MacrocellRanges ranges;  // mip, minip and isosurfaces
     simd::FlatFunction flat_sigma, flat_color;
+    simd::BreakTable break_table;
     simd::BatchSource batch;                  // batch.data == nullptr: no SIMD
     std::vector<std::uint32_t> active_cells;  // batch.active
     Volume owned;   // the volume, where the renderer took it over (emptied once in bricks)
