@@ -400,3 +400,45 @@ TEST(Packets, EmptyRunsEndingShortOfTheirExitsAreBitIdentical) {
             EXPECT_EQ(compare(v, shell_tf(0, 250), s, cams), 0) << to_string(k) << " step " << step;
         }
 }
+
+// Renderer::render into a kept image (a viewer's frames): the pixels are
+// not cleared, so every path must write every one. Images filled with NaN
+// first, then rendered into again and again, against fresh ones: the same
+// bits, with and without packets, skipping, depth outputs and cropping (rays
+// that miss), and an image of another size replaced.
+TEST(Frames, AKeptImageGetsEveryPixelOfAFreshOne) {
+    const Volume v = shells(DType::u8, 0, 250);
+    const TransferFunction tf = shell_tf(0, 250);
+    const Bounds b = volume_bounds(v);
+    const std::vector<Camera> cams{Camera::orbit(30, 20, 2.0, b.center, b.radius),
+                                   Camera::orbit(100, -40, 1.2, b.center, b.radius)};
+    auto nan_image = [](int w, int h) {
+        Image img(w, h);
+        std::fill(img.rgba.begin(), img.rgba.end(), std::numeric_limits<float>::quiet_NaN());
+        return img;
+    };
+    int checked = 0;
+    for (auto k : {IntegratorKind::alpha, IntegratorKind::preintegrated, IntegratorKind::reference})
+        for (int variant = 0; variant < 4; ++variant) {
+            RenderSettings s = packet_settings(k, Model::emission_absorption);
+            s.packets = variant != 1;
+            s.skip_empty = variant != 2;
+            s.depth_outputs = variant == 3;
+            if (variant == 2) s.crop = WorldBox{b.center - Vec3{5, 5, 5}, b.center + Vec3{8, 6, 9}};
+            const Renderer r(v, tf, s);
+            Image kept = nan_image(s.width, s.height);
+            Image other = nan_image(s.width + 3, s.height);
+            for (const Camera& cam : cams) {
+                const Image fresh = r.render(cam);
+                r.render(cam, kept);
+                r.render(cam, other);
+                for (const Image* img : {&kept, &other}) {
+                    EXPECT_TRUE(same_pixels(*img, fresh)) << to_string(k) << " variant " << variant;
+                    EXPECT_EQ(img->depth.size(), fresh.depth.size());
+                    EXPECT_EQ(std::memcmp(img->depth.data(), fresh.depth.data(), 4 * fresh.depth.size()), 0);
+                }
+                ++checked;
+            }
+        }
+    EXPECT_EQ(checked, 24);
+}

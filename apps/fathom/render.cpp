@@ -157,10 +157,11 @@ void run_render(const RenderArgs& a) {
     std::unique_ptr<VideoWriter> video;
     if (!a.video.empty())
         video = std::make_unique<VideoWriter>(a.video, scene.settings.width, scene.settings.height, a.fps);
+    Image image;  // each frame into the last one's
     for (int f = 0; f < a.orbit_frames; ++f) {
         const Camera cam = scene.camera.turned(center, 360.0 * f / a.orbit_frames);
         Progress progress(!a.quiet);
-        const Image image = renderer.render(cam, [&](int d, int t) { progress(d, t); });
+        renderer.render(cam, image, [&](int d, int t) { progress(d, t); });
         files.push_back(frame_path(a.output, f));
         cams.push_back(cam);
         write_image(files.back(), image, scene.settings.transparent);

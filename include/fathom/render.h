@@ -208,6 +208,11 @@ public:
     /// The whole image; tiles over threads; the result does not depend on
     /// the thread count.
     [[nodiscard]] Image render(const Camera& camera, const ProgressFn& progress = {}) const;
+    /// The same image into `into`, whose storage is kept where it already
+    /// holds an image of the settings' size (a viewer's or a benchmark's
+    /// frame after frame): no allocation and no clearing, as every pixel is
+    /// written. After an error `into` holds no complete image.
+    void render(const Camera& camera, Image& into, const ProgressFn& progress = {}) const;
     /// The number of segments (samples) the image's rays hold by eq. (8),
     /// before early termination: the work measure of `fathom bench`.
     [[nodiscard]] std::uint64_t count_segments(const Camera& camera) const;

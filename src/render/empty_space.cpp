@@ -502,14 +502,14 @@ void EmptySpace::build_ahead(int o, std::uint8_t* out, std::int64_t zi, detail::
     }
 }
 
-PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
-                                     const Vec3& origin, int threads, std::size_t boxes_per_thread) const {
-    PixelBounds out;
-    if (!any_ || width <= 0 || height <= 0) return out;
+void EmptySpace::pixel_bounds(PixelBounds& out, const Camera& camera, int width, int height, const Mat3& axes,
+                              const Vec3& origin, int threads, std::size_t boxes_per_thread) const {
+    out.clear();
+    if (!any_ || width <= 0 || height <= 0) return;
     const Vec3 basis[3] = {camera.right, camera.up, camera.forward};
     for (int a = 0; a < 3; ++a) {
-        if (std::abs(dot(basis[a], basis[a]) - 1.0) > 1e-12) return out;
-        if (std::abs(dot(basis[a], basis[(a + 1) % 3])) > 1e-12) return out;
+        if (std::abs(dot(basis[a], basis[a]) - 1.0) > 1e-12) return;
+        if (std::abs(dot(basis[a], basis[(a + 1) % 3])) > 1e-12) return;
     }
     // Camera coordinates (along right, up, forward) of lattice point q:
     // c0 + Σ_a q_a·col[a].
@@ -539,7 +539,7 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         }
         for (int k = 0; k < 8; ++k) {
             const Vec3 c = corner(lo, hi, k);
-            if (!(c.z > 0.0)) return out;
+            if (!(c.z > 0.0)) return;
             extent = std::max(extent, length(c));
         }
     }
@@ -583,7 +583,9 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
         std::min({static_cast<std::int64_t>(resolve_threads(threads)),
                   1 + static_cast<std::int64_t>(border_.size() / std::max<std::size_t>(1, boxes_per_thread)),
                   std::max<std::int64_t>(2, 1 + (std::int64_t{32} << 20) / copy_bytes)})));
-    std::vector<std::vector<float>> own_lo(static_cast<std::size_t>(nt - 1)), own_hi(own_lo.size());
+    std::vector<std::vector<float>>&own_lo = out.spare_lo, &own_hi = out.spare_hi;
+    own_lo.resize(static_cast<std::size_t>(nt - 1));
+    own_hi.resize(own_lo.size());
     parallel_blocks(border_.size(), nt, [&](std::size_t b0, std::size_t b1, int t) {
         std::vector<float>& lo = t == 0 ? out.lo : own_lo[static_cast<std::size_t>(t - 1)];
         std::vector<float>& hi = t == 0 ? out.hi : own_hi[static_cast<std::size_t>(t - 1)];
@@ -613,7 +615,6 @@ PixelBounds EmptySpace::pixel_bounds(const Camera& camera, int width, int height
                 }
             }
         });
-    return out;
 }
 
 double EmptySpace::empty_fraction() const {

@@ -78,10 +78,19 @@ inline double zero_below(const Classifier& tf, Model m) {
 struct PixelBounds {
     int width = 0;
     std::vector<float> lo, hi;  // per pixel, row-major; empty: no bounds (lo = −∞, hi = +∞)
+    /// The other threads' bounds before they merge (scratch, kept with the
+    /// bounds so that the next frame's reuse its pages).
+    std::vector<std::vector<float>> spare_lo, spare_hi;
     /// How far (index units, per axis) around each macrocell the bounds
     /// hold: far more than rounding moves a computed sample position.
     static constexpr double kMargin = 1.0 / 64.0;
     [[nodiscard]] bool any() const { return !lo.empty(); }
+    /// No bounds (the storage kept).
+    void clear() {
+        width = 0;
+        lo.clear();
+        hi.clear();
+    }
     /// The bounds of pixel (x, y).
     void at(int x, int y, double& t_lo, double& t_hi) const {
         if (lo.empty()) {
@@ -225,7 +234,14 @@ public:
     /// bounds for any count).
     [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera, int width, int height, const Mat3& axes,
                                            const Vec3& origin, int threads,
-                                           std::size_t boxes_per_thread = 16384) const;
+                                           std::size_t boxes_per_thread = 16384) const {
+        PixelBounds out;
+        pixel_bounds(out, camera, width, height, axes, origin, threads, boxes_per_thread);
+        return out;
+    }
+    /// The same into `out`, reusing its storage (a renderer's frame after frame).
+    void pixel_bounds(PixelBounds& out, const Camera& camera, int width, int height, const Mat3& axes,
+                      const Vec3& origin, int threads, std::size_t boxes_per_thread = 16384) const;
 
     /// The cap of distance_ahead.
     static constexpr int kMaxDistance = 255;

@@ -314,7 +314,7 @@ const RenderSettings& Renderer::settings() const {
     return impl_->s;
 }
 
-PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
+void Renderer::Impl::pixel_bounds(const Camera& camera, PixelBounds& out) const {
     const bool segments = s.integrator == IntegratorKind::alpha || s.integrator == IntegratorKind::riemann ||
                           s.integrator == IntegratorKind::preintegrated ||
                           s.integrator == IntegratorKind::preintegrated_simple;
@@ -322,8 +322,11 @@ PixelBounds Renderer::Impl::pixel_bounds(const Camera& camera) const {
         s.model == Model::emission_absorption || s.model == Model::absorption || s.model == Model::emission;
     const EmptySpace* es = skipper();
     const bool walks = (segments && zero_able) || s.model == Model::isosurface || s.model == Model::average;
-    if (es == nullptr || !walks) return {};
-    return es->pixel_bounds(camera, s.width, s.height, axes, origin, s.threads);
+    if (es == nullptr || !walks) {
+        out.clear();
+        return;
+    }
+    es->pixel_bounds(out, camera, s.width, s.height, axes, origin, s.threads);
 }
 
 RayResult Renderer::trace(const Ray& ray) const {
@@ -332,16 +335,29 @@ RayResult Renderer::trace(const Ray& ray) const {
 }
 
 Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
+    Image img;
+    render(camera, img, progress);
+    return img;
+}
+
+void Renderer::render(const Camera& camera, Image& img, const ProgressFn& progress) const {
     const RenderSettings& s = impl_->s;
     // the macrocells' tables this frame reads stay; those the last frame
     // did not read go (EmptySpace::Use)
     const EmptySpace::Use use(impl_->empty_space, true);
-    Image img(s.width, s.height);
+    const std::size_t pixels = static_cast<std::size_t>(s.width) * static_cast<std::size_t>(s.height);
+    if (img.width != s.width || img.height != s.height || img.rgba.size() != 4 * pixels)
+        img = Image(s.width, s.height);  // (a kept one is not cleared: every pixel is written below)
     if (s.depth_outputs) {
-        img.depth.assign(img.rgba.size() / 4, INFINITY);
-        img.first_hit.assign(img.rgba.size() / 4, INFINITY);
+        img.depth.assign(pixels, INFINITY);
+        img.first_hit.assign(pixels, INFINITY);
+    } else {
+        img.depth.clear();
+        img.first_hit.clear();
     }
-    const PixelBounds bounds = impl_->pixel_bounds(camera);
+    std::unique_ptr<PixelBounds> held = impl_->take_bounds();
+    impl_->pixel_bounds(camera, *held);
+    const PixelBounds& bounds = *held;
     const bool empty_is_background = impl_->empty_rays_see_background();
     const PixelRays rays(camera, s.width, s.height);
     constexpr int kTile = 16;
@@ -408,8 +424,8 @@ Image Renderer::render(const Camera& camera, const ProgressFn& progress) const {
     for (int i = 1; i < n; ++i) pool.emplace_back(worker);
     worker();
     for (auto& th : pool) th.join();
+    impl_->keep_bounds(std::move(held));
     if (failure) std::rethrow_exception(failure);
-    return img;
 }
 
 std::uint64_t Renderer::count_segments(const Camera& camera) const {

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include "fathom/error.h"
@@ -271,7 +273,19 @@ struct Renderer::Impl {
     /// The frame's PixelBounds for `camera` where its tracer walks the
     /// macrocells (the integrators over segments of a zero-able medium,
     /// isosurfaces and the average); else none.
-    [[nodiscard]] PixelBounds pixel_bounds(const Camera& camera) const;
+    void pixel_bounds(const Camera& camera, PixelBounds& out) const;
+    /// A frame's bounds storage: the last frame's, kept (a frame at a time
+    /// reuses its pages), or new where another frame holds it.
+    [[nodiscard]] std::unique_ptr<PixelBounds> take_bounds() const {
+        const std::lock_guard lock(bounds_mutex);
+        return kept_bounds != nullptr ? std::move(kept_bounds) : std::make_unique<PixelBounds>();
+    }
+    void keep_bounds(std::unique_ptr<PixelBounds> b) const {
+        const std::lock_guard lock(bounds_mutex);
+        if (kept_bounds == nullptr) kept_bounds = std::move(b);
+    }
+    mutable std::mutex bounds_mutex;
+    mutable std::unique_ptr<PixelBounds> kept_bounds;
 
     /// True where trace() gives the background, alpha 0, for every ray whose
     /// bounds hold no non-empty macrocell (occupied_lo > occupied_hi),

@@ -163,7 +163,7 @@ struct FathomSide {
           renderer(sc.volume, sc.tf, s) {}
     double render(const fathom::Camera& cam) {
         const auto t0 = Clock::now();
-        last = renderer.render(cam);
+        renderer.render(cam, last);  // into the last frame's image, as VTK into its frame buffer
         return seconds_since(t0);
     }
 };
