@@ -61,21 +61,28 @@ HWY_INLINE V PiecePosition(V v, V k0, V inv) {
     return hn::Mul(hn::Sub(v, k0), inv);
 }
 
-/// The number of the first N of `keys` below v (kStrict) or at most v, per
-/// lane, as int64 lanes: unrolled, a masked increment per key.
-template <bool kStrict, std::size_t N>
-HWY_INLINE VI CountKeysN(D d, const double* keys, V v) {
+/// c plus the number of keys k … k + n − 1 below v (kStrict) or at most v,
+/// per lane, as int64 lanes: a masked increment per key.
+template <bool kStrict>
+HWY_INLINE VI AddCounts(D d, VI c, const double* keys, std::size_t n, V v) {
     const DI di;
     const VI one = hn::Set(di, 1);
-    VI c = hn::Zero(di);
-    for (std::size_t k = 0; k < N; ++k) {
+    for (std::size_t k = 0; k < n; ++k) {
         const M m = kStrict ? hn::Lt(hn::Set(d, keys[k]), v) : hn::Le(hn::Set(d, keys[k]), v);
         c = hn::IfThenElse(hn::RebindMask(di, m), hn::Add(c, one), c);
     }
     return c;
 }
 
-/// The number of the n ≤ 8 `keys` below v (kStrict) or at most v, per lane.
+/// The number of the first N of `keys` below v (kStrict) or at most v, per
+/// lane: unrolled.
+template <bool kStrict, std::size_t N>
+HWY_INLINE VI CountKeysN(D d, const double* keys, V v) {
+    return AddCounts<kStrict>(d, hn::Zero(DI()), keys, N, v);
+}
+
+/// The number of the n `keys` below v (kStrict) or at most v, per lane
+/// (unrolled up to 8).
 template <bool kStrict>
 HWY_INLINE VI CountKeys(D d, const double* keys, std::size_t n, V v) {
     switch (n) {
@@ -96,7 +103,7 @@ HWY_INLINE VI CountKeys(D d, const double* keys, std::size_t n, V v) {
         case 7:
             return CountKeysN<kStrict, 7>(d, keys, v);
         default:
-            return CountKeysN<kStrict, 8>(d, keys, v);
+            return AddCounts<kStrict>(d, CountKeysN<kStrict, 8>(d, keys, v), keys + 8, n - 8, v);
     }
 }
 

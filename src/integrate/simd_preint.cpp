@@ -31,15 +31,7 @@ using namespace exp_v;  // hn, the vector types D, V, M, DI, VI and the exponent
 template <bool kStrict>
 HWY_INLINE VI Count(D d, const std::vector<double>& keys, V v) {
     const DI di;
-    if (keys.size() <= 8) return CountKeys<kStrict>(d, keys.data(), keys.size(), v);
-    if (keys.size() <= 32) {
-        VI c = hn::Zero(di);
-        for (double k : keys) {
-            const M m = kStrict ? hn::Lt(hn::Set(d, k), v) : hn::Le(hn::Set(d, k), v);
-            c = hn::Sub(c, hn::VecFromMask(di, hn::RebindMask(di, m)));
-        }
-        return c;
-    }
+    if (keys.size() <= 32) return CountKeys<kStrict>(d, keys.data(), keys.size(), v);
     HWY_ALIGN double lanes[hn::MaxLanes(d)];
     HWY_ALIGN std::int64_t counts[hn::MaxLanes(d)];
     hn::Store(v, d, lanes);
