@@ -81,29 +81,17 @@ HWY_INLINE VI CountKeysN(D d, const double* keys, V v) {
     return AddCounts<kStrict>(d, hn::Zero(DI()), keys, N, v);
 }
 
-/// The number of the n `keys` below v (kStrict) or at most v, per lane
-/// (unrolled up to 8).
-template <bool kStrict>
+/// The number of the n `keys` below v (kStrict) or at most v, per lane:
+/// unrolled where n ≤ kMost (an instantiation per count), the keys past
+/// kMost a loop.
+template <bool kStrict, std::size_t kMost = 8>
 HWY_INLINE VI CountKeys(D d, const double* keys, std::size_t n, V v) {
-    switch (n) {
-        case 0:
-            return hn::Zero(DI());
-        case 1:
-            return CountKeysN<kStrict, 1>(d, keys, v);
-        case 2:
-            return CountKeysN<kStrict, 2>(d, keys, v);
-        case 3:
-            return CountKeysN<kStrict, 3>(d, keys, v);
-        case 4:
-            return CountKeysN<kStrict, 4>(d, keys, v);
-        case 5:
-            return CountKeysN<kStrict, 5>(d, keys, v);
-        case 6:
-            return CountKeysN<kStrict, 6>(d, keys, v);
-        case 7:
-            return CountKeysN<kStrict, 7>(d, keys, v);
-        default:
-            return AddCounts<kStrict>(d, CountKeysN<kStrict, 8>(d, keys, v), keys + 8, n - 8, v);
+    if constexpr (kMost == 0) {
+        return AddCounts<kStrict>(d, hn::Zero(DI()), keys, n, v);
+    } else {
+        if (n >= kMost)
+            return AddCounts<kStrict>(d, CountKeysN<kStrict, kMost>(d, keys, v), keys + kMost, n - kMost, v);
+        return CountKeys<kStrict, kMost - 1>(d, keys, n, v);
     }
 }
 
