@@ -246,6 +246,33 @@ HWY_INLINE V cell_bytes(D d, const BatchSource& src, const double (*cell)[kBatch
                    hn::Set(d, static_cast<double>(sizeof(T))));
 }
 
+/// cell_bytes in 32-bit integers (where the offsets of every stored node
+/// fit, as the paired gathers need): the same offsets, from shifts and
+/// integer products instead of a chain of double operations.
+template <class T, class DI>
+HWY_INLINE hn::Vec<DI> cell_offsets(DI di, const BatchSource& src, const double (*cell)[kBatch],
+                                    std::size_t b) {
+    const D d;
+    hn::Vec<DI> c[3];
+    for (int a = 0; a < 3; ++a) c[a] = hn::DemoteTo(di, hn::Load(d, cell[a] + b));
+    auto set = [&](std::int64_t v) { return hn::Set(di, static_cast<std::int32_t>(v)); };
+    constexpr std::int64_t size = sizeof(T);
+    if (src.bricks_x <= 0)
+        return hn::Mul(hn::Add(c[0], hn::Mul(set(src.nx), hn::Add(c[1], hn::Mul(set(src.ny), c[2])))),
+                       set(size));
+    static_assert(Bricks::kCells == 32);
+    const auto mask = set(Bricks::kCells - 1);
+    const auto brick = hn::Add(
+        hn::ShiftRight<5>(c[0]),
+        hn::Mul(set(src.bricks_x),
+                hn::Add(hn::ShiftRight<5>(c[1]), hn::Mul(set(src.bricks_y), hn::ShiftRight<5>(c[2])))));
+    const auto within =
+        hn::Add(hn::And(c[0], mask),
+                hn::Mul(set(Bricks::kNodes),
+                        hn::Add(hn::And(c[1], mask), hn::Mul(set(Bricks::kNodes), hn::And(c[2], mask)))));
+    return hn::Add(hn::Mul(brick, set(Bricks::kBrickNodes * size)), hn::Mul(within, set(size)));
+}
+
 /// GridSampler::interpolate of vectors of cells and fractions, the corners
 /// gathered in pairs (q[0], q[1]) per row: the same values, the same
 /// operations, so the same bits as the scalar fetch.
@@ -275,14 +302,14 @@ HWY_INLINE void pair_corners(const BatchSource& src, const double (*cell)[kBatch
                 continue;
             }
         }
-        const V bytes = cell_bytes<T>(d, src, cell, b);
         V c[8];
         if constexpr (std::is_same_v<T, float>) {  // 64 bits: two floats per gather
+            const V bytes = cell_bytes<T>(d, src, cell, b);
             for (int r = 0; r < 4; ++r)
                 gather_x_pair<T>(d, src, hn::Add(bytes, hn::Set(d, static_cast<double>(rows[r]))), c + 2 * r);
-        } else {  // gather_x_pair's, the offset demoted once for the 4 rows
+        } else {  // gather_x_pair's, the offset computed once for the 4 rows
             const hn::Rebind<std::int32_t, D> di;
-            const auto off = hn::DemoteTo(di, bytes);
+            const auto off = cell_offsets<T>(di, src, cell, b);
             const auto last = hn::Set(di, static_cast<std::int32_t>(stored * size - 4));
             for (int r = 0; r < 4; ++r) {
                 hn::Vec<decltype(di)> lo, hi;
@@ -1256,10 +1283,17 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 LanePositions(d, L, h * N, hn::Add(i, hn::Set(d, static_cast<double>(kPrefetchAhead))), p);
                 HWY_ALIGN double pc[3][kBatch], pf[3][kBatch];
                 for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], 0, pc, pf);
-                HWY_ALIGN double at[8];
-                hn::Store(cell_bytes<T>(d, src, pc, 0), d, at);
+                HWY_ALIGN std::int64_t at[8];
+                if constexpr (std::is_same_v<T, float>) {  // offsets may pass 2³¹
+                    const hn::Rebind<std::int64_t, D> dl;
+                    hn::Store(hn::ConvertTo(dl, cell_bytes<T>(d, src, pc, 0)), dl, at);
+                } else {
+                    const hn::Rebind<std::int32_t, D> di;
+                    const hn::Rebind<std::int64_t, D> dl;
+                    hn::Store(hn::PromoteTo(dl, cell_offsets<T>(di, src, pc, 0)), dl, at);
+                }
                 for (std::size_t l = 0; l < N; ++l) {
-                    const char* q0 = static_cast<const char*>(src.data) + static_cast<std::int64_t>(at[l]);
+                    const char* q0 = static_cast<const char*>(src.data) + at[l];
                     for (const std::int64_t r : rows) __builtin_prefetch(q0 + r);
                 }
             }
