@@ -1087,8 +1087,9 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             if (P.stopped[l] != 0.0) continue;
             double tr = L.T[l], C[3] = {L.C[0][l], L.C[1][l], L.C[2][l]};
             auto k = static_cast<std::size_t>(win.first);
-            for (unsigned i = 0; i < win.n; ++i) {
-                if (((win.skip >> i) & 1u) != 0) continue;  // (1, 0)
+            // the wanted segments in order; the others are (1, 0)
+            for (std::uint32_t want = ~win.skip & ((std::uint32_t{1} << win.n) - 1u); want != 0;
+                 want &= want - 1u) {
                 double t, r[3];
                 if (pack.scalar[k] != 0.0) {
                     pre->scalar(pre->ctx, pack.vf[k], pack.vb[k], pack.delta[k], &t, r);
@@ -1128,6 +1129,18 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 waiting[waits++] = {l, n, skip, pack.count};
                 const double dl = L.dl[l];
                 int k = pack.count;
+#if HWY_TARGET <= HWY_AVX3
+                // 8 segments at a time, the wanted ones compressed to the
+                // front (the pack's padding takes the rest of the vector)
+                const std::uint32_t want = ~skip & all;
+                for (unsigned i = 0; i < n; i += 8) {
+                    const auto bits = static_cast<__mmask8>((want >> i) & 0xFFu);
+                    _mm512_storeu_pd(pack.vf + k, _mm512_maskz_compress_pd(bits, _mm512_loadu_pd(e + i)));
+                    _mm512_storeu_pd(pack.vb + k, _mm512_maskz_compress_pd(bits, _mm512_loadu_pd(e + i + 1)));
+                    _mm512_storeu_pd(pack.delta + k, _mm512_set1_pd(dl));
+                    k += std::popcount(static_cast<unsigned>(bits));
+                }
+#else
                 for (unsigned i = 0; i < n; ++i) {
                     if (((skip >> i) & 1u) != 0) continue;
                     pack.vf[k] = e[i];
@@ -1135,6 +1148,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     pack.delta[k] = dl;
                     ++k;
                 }
+#endif
                 pack.count = k;
             }
         }
