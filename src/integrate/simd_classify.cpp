@@ -1067,8 +1067,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     // whole vectors; `drain` pre-integrates the pack and composites each
     // window in turn (composite()'s operations), a lane's until one leaves
     // T below the threshold. A window that fills leaves its last end to the
-    // next (`carry`). The pack is drained at each step's end, before lanes
-    // finish, and when full.
+    // next (`carry`). The pack is drained at a step's end once it holds
+    // kDrainAt segments, before lanes finish, and when full.
     struct Waiting {
         std::size_t lane;
         unsigned n;          // segments
@@ -1076,6 +1076,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         int first;           // the pack's place of its first wanted segment
     };
     SegmentPack pack;
+    constexpr int kDrainAt = 64;
     Waiting waiting[SegmentPack::kCapacity];
     std::size_t waits = 0;
     auto drain = [&] {
@@ -1322,7 +1323,11 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const auto m = static_cast<std::size_t>(sampled[l]);
                 if (m > 0 && P.stopped[l] == 0.0) push_step(l, m, sample_at, values);
             }
-            drain();
+            // drained once it holds kDrainAt segments (8 vectors) rather
+            // than at every step, its vectors fuller; a lane whose ray
+            // stops in a waiting window samples on until then, its later
+            // windows not composited (the same sums)
+            if (pack.count >= kDrainAt) drain();
         }
         bool stop = false;
         for (std::size_t h = 0; h < K; ++h) {
