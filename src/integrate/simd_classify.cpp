@@ -1132,7 +1132,9 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 int k = pack.count;
 #if HWY_TARGET <= HWY_AVX3
                 // 8 segments at a time, the wanted ones compressed to the
-                // front (the pack's padding takes the rest of the vector)
+                // front (the pack's padding takes the rest of the vector:
+                // k stays within kCapacity, checked above)
+                static_assert(SegmentPack::kPadded >= SegmentPack::kCapacity + 8);
                 const std::uint32_t want = ~skip & all;
                 for (unsigned i = 0; i < n; i += 8) {
                     const auto bits = static_cast<__mmask8>((want >> i) & 0xFFu);
