@@ -239,7 +239,9 @@ HWY_INLINE std::array<std::int64_t, 4> corner_rows(const BatchSource& src) {
 }
 
 /// The byte offset of the first node of the cells of lanes b … b + N − 1,
-/// x-fastest or in bricks: an exact integer in doubles.
+/// x-fastest or in bricks: an exact integer in doubles. For float32
+/// samples, whose x-fastest offsets may pass 2³¹ (their 64-bit gathers
+/// take 64-bit offsets); the narrower types take cell_offsets.
 template <class T>
 HWY_INLINE V cell_bytes(D d, const BatchSource& src, const double (*cell)[kBatch], std::size_t b) {
     return hn::Mul(src.bricks_x > 0 ? brick_node(d, src, cell, b) : linear_node(d, src, cell, b),
