@@ -132,24 +132,31 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
     EXPECT_FALSE(takes([](RenderSettings& s) { s.depth_outputs = true; }));
     // without skipping: a walk of macrocells none of which is empty
     EXPECT_TRUE(takes([](RenderSettings& s) { s.skip_empty = false; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) {
+        s.skip_empty = false;
+        s.integrator = IntegratorKind::preintegrated;
+    }));
     EXPECT_FALSE(takes([](RenderSettings& s) {
         s.skip_empty = false;
         s.integrator = IntegratorKind::preintegrated;
+        s.order = Order::back_to_front;
     }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.simd = false; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.model = Model::mip; }));
 }
 
 // Where nothing is skipped (skipping off, or a transfer function with no
-// zero range), point-sampled packets walk macrocells none of which is
-// empty: the same bits as the one-by-one path's single run per ray.
+// zero range), packets walk macrocells none of which is empty: the same
+// bits as the one-by-one path's single run per ray (point-sampled) or its
+// windows over every segment (pre-integrated).
 TEST(Packets, FramesThatSkipNothingAreBitIdentical) {
     const Volume v = shells(DType::u16, 100, 60000);
     const auto cams = test::comparison_cameras(v);
     TransferFunction everywhere = shell_tf(100, 60000);
     everywhere.alpha_points.front().second = 0.05;
     everywhere.alpha_points[1].second = 0.05;
-    for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann}) {
+    for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated,
+                   IntegratorKind::preintegrated_simple}) {
         RenderSettings s = packet_settings(k, Model::emission_absorption);
         s.skip_empty = false;
         EXPECT_EQ(compare(v, shell_tf(100, 60000), s, cams), 0) << to_string(k) << " without skipping";

@@ -1178,6 +1178,21 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                          const double(*values)[kPacketGroups * kBatch]) {
         const double j0 = at[0][l];
         if (at[m - 1][l] == j0 + static_cast<double>(m - 1) && (P.count[l] == 0 || j0 == P.last[l] + 1.0)) {
+            const int c = P.count[l];
+            // A window of at most one end, below the zero range (flush's
+            // bits), and a step whose ends all lie below it: every segment
+            // is (1, 0), and the step's last end is all the window keeps.
+            auto below = [&] {
+                for (std::size_t q = 0; q < m; ++q)
+                    if (!(values[q][l] < src.zero_below)) return false;
+                return true;
+            };
+            if ((c == 0 || (c == 1 && P.ends[l][0] < src.zero_below)) && below()) {
+                P.ends[l][0] = values[m - 1][l];
+                P.count[l] = 1;
+                P.last[l] = j0 + static_cast<double>(m - 1);
+                return;
+            }
             // in a row, on from the window's last end: push's appends, a
             // full window flushed (its last end carried) where it fills
             constexpr int kFull = static_cast<int>(kBatch) + 1;

@@ -251,19 +251,19 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     // walk macrocells none of which is empty (EmptySpace::none), each ray's
     // span one run, as the one-by-one path's zero split takes it.
     const bool point = batch.rule != simd::PointRule::none && !s.jitter;
-    // So do integrate_preintegrated's SIMD windows where empty macrocells
-    // join (simd::PacketPreint); without skipping they keep their windows
-    // (no faster in packets there).
+    // So do integrate_preintegrated's SIMD windows (simd::PacketPreint)
+    // where empty macrocells join, and where nothing is skipped (skipping
+    // off, or no macrocell empty): their windows then hold every segment.
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
-    const bool preint_joins = preint && optical && skipper() != nullptr && empty_space.joins_empty();
+    const bool preint_joins = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
     const bool eligible = s.packets && batch.data != nullptr && (point || preint_joins) &&
                           batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
                           !s.depth_outputs;
     if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
         empty_space = EmptySpace::none(volume, kMacrocellShift);
     const auto& mc = empty_space.dims();
-    packets = eligible && (skipper() != nullptr || point) && mc[0] * mc[1] * mc[2] >= 4;
+    packets = eligible && mc[0] * mc[1] * mc[2] >= 4;
     packet_preint_on = packets && preint_joins;
     packet_preint = {model, s.integrator == IntegratorKind::preintegrated, &preint_scalar_segment, this};
     // (Bricked, the tracer's scalar sampler holds no samples: nothing on
