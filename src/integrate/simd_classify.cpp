@@ -1027,15 +1027,14 @@ HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl
     for (int k = 0; k < 3; ++k) rad[k] = hn::IfThenElseZero(hn::Not(zero), rad[k]);
 }
 
-/// A packet's pre-integration (PacketPreint), per lane: the ends sampled
-/// since its last window (kBatch + 1 at most, ends[0] carried over where
-/// the last window went on), the last one's sample, the last sample its
-/// walk queued, and whether its ray stopped.
+/// A packet's pre-integration (PacketPreint), per lane: its last end
+/// (`prev`, at sample `last`; `has`: 1 once the ray has one), the last
+/// sample its walk queued, and whether its ray stopped.
 struct PreintLanes {
     static constexpr std::size_t L = kPacketLanesMax;
-    HWY_ALIGN double ends[L][kBatch + 16];  // preintegrate_batch reads past the last end
-    int count[L];
-    double last[L];
+    HWY_ALIGN double prev[L];
+    HWY_ALIGN double last[L];
+    HWY_ALIGN double has[L];
     HWY_ALIGN double queued[L];
     HWY_ALIGN double stopped[L];  // 1: below the termination threshold
 };
@@ -1048,8 +1047,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     const std::size_t N = hn::Lanes(d), lanes = kPacketVectors * N;
     constexpr std::size_t K = kPacketVectors;
     PacketLanes L;
-    PreintLanes P;  // (its ends zeroed where they are used: read past the last, not used)
-    if constexpr (kPre) std::fill(&P.ends[0][0], &P.ends[0][0] + sizeof P.ends / sizeof(double), 0.0);
+    PreintLanes P;
     std::size_t next = 0;
     auto load = [&](std::size_t l) {
         if (next < count) {
@@ -1061,156 +1059,81 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         } else {
             L.load(l, nullptr, -1, false);
         }
-        P.count[l] = 0;
-        P.queued[l] = P.stopped[l] = 0.0;
+        P.has[l] = P.queued[l] = P.stopped[l] = 0.0;
     };
-    // Pre-integration: lane l's windows wait, their wanted segments (those
-    // with an end at or above the zero range) packed with other lanes' into
-    // whole vectors; `drain` pre-integrates the pack and composites each
-    // window in turn (composite()'s operations), a lane's until one leaves
-    // T below the threshold. A window that fills leaves its last end to the
-    // next (`carry`). The pack is drained at a step's end once it holds
-    // kDrainAt segments, before lanes finish, and when full.
-    struct Waiting {
-        std::size_t lane;
-        unsigned n;          // segments
-        std::uint32_t skip;  // bit i: segment i is (1, 0), not packed
-        int first;           // the pack's place of its first wanted segment
+    // Pre-integration: each step's segments, lane by lane (an end and the
+    // one before it, consecutive samples of the ray; those across a gap
+    // lie in empty macrocells that join, (1, 0)), the wanted ones (an end
+    // at or above the zero range) packed into whole vectors in the order
+    // (step, vector, sample, lane); `drain` pre-integrates the pack and
+    // composites the steps in turn, a vector of lanes at a time (each
+    // lane's segments in ray order, composite()'s operations, a lane's
+    // until one leaves T below the threshold). The pack is drained at a
+    // step's end once it holds kDrainAt segments, and before lanes finish.
+    struct Step {
+        std::uint8_t want[kSteps][kPacketVectors];  // the wanted segments' lanes
+        std::uint16_t at[kSteps][kPacketVectors];   // the pack's place of the first
     };
     SegmentPack pack;
     constexpr int kDrainAt = 64;
-    Waiting waiting[SegmentPack::kCapacity];
-    std::size_t waits = 0;
+    constexpr std::size_t kStepMost = kSteps * kPacketLanesMax;  // segments a step adds at most
+    static_assert(kDrainAt + kStepMost <= SegmentPack::kCapacity);
+    static_assert(SegmentPack::kPadded >= SegmentPack::kCapacity + 8);  // whole vectors read and written
+    Step pending[kDrainAt + 1];
+    std::size_t waiting = 0;  // steps in `pending`
+    const V thr_v = hn::Set(d, termination);
     auto drain = [&] {
-        if (waits == 0) return;
+        if (waiting == 0) return;
         preintegrate_pack(src, pre->model, pre->full, pack);
-        for (std::size_t w = 0; w < waits; ++w) {
-            const Waiting& win = waiting[w];
-            const std::size_t l = win.lane;
-            if (P.stopped[l] != 0.0) continue;
-            double tr = L.T[l], C[3] = {L.C[0][l], L.C[1][l], L.C[2][l]};
-            auto k = static_cast<std::size_t>(win.first);
-            // the wanted segments in order; the others are (1, 0)
-            for (std::uint32_t want = ~win.skip & ((std::uint32_t{1} << win.n) - 1u); want != 0;
-                 want &= want - 1u) {
+        for (int k = 0; k < pack.count; ++k)
+            if (pack.scalar[k] != 0.0) {
                 double t, r[3];
-                if (pack.scalar[k] != 0.0) {
-                    pre->scalar(pre->ctx, pack.vf[k], pack.vb[k], pack.delta[k], &t, r);
-                } else {
-                    t = pack.transmittance[k];
-                    for (int c = 0; c < 3; ++c) r[c] = pack.radiance[c][k];
-                }
-                ++k;
-                for (int c = 0; c < 3; ++c) C[c] += tr * r[c];
-                tr *= t;
-                if (tr < termination) {
-                    P.stopped[l] = 1.0;
-                    break;
-                }
+                pre->scalar(pre->ctx, pack.vf[k], pack.vb[k], pack.delta[k], &t, r);
+                pack.transmittance[k] = t;
+                for (int c = 0; c < 3; ++c) pack.radiance[c][k] = r[c];
             }
-            L.T[l] = tr;
-            for (int c = 0; c < 3; ++c) L.C[c][l] = C[c];
-        }
-        waits = 0;
-        pack.count = 0;
-    };
-    auto flush = [&](std::size_t l, bool carry) {
-        const int c = P.count[l];
-        double* e = P.ends[l];
-        if (c >= 2) {
-            const auto n = static_cast<unsigned>(c - 1);
-            std::uint32_t below = 0;  // InterpolateBatch's bits
-            for (std::size_t k = 0; k < static_cast<std::size_t>(c); k += N) {
-                std::uint8_t bits[8] = {};
-                hn::StoreMaskBits(d, hn::Lt(hn::Load(d, e + k), hn::Set(d, src.zero_below)), bits);
-                below |= static_cast<std::uint32_t>(bits[0]) << k;
-            }
-            const std::uint32_t all = (std::uint32_t{1} << n) - 1u, skip = below & (below >> 1) & all;
-            if (skip != all) {
-                const auto wanted = static_cast<int>(n) - std::popcount(skip);
-                if (pack.count + wanted > static_cast<int>(SegmentPack::kCapacity)) drain();
-                waiting[waits++] = {l, n, skip, pack.count};
-                const double dl = L.dl[l];
-                int k = pack.count;
+        const V one_v = hn::Set(d, 1.0);
+        for (std::size_t h = 0; h < K; ++h) {
+            const std::size_t o = h * N;
+            V tr = hn::Load(d, L.T + o), C[3];
+            for (int c = 0; c < 3; ++c) C[c] = hn::Load(d, L.C[c] + o);
+            M stopped = hn::Eq(hn::Load(d, P.stopped + o), one_v);
+            for (std::size_t st = 0; st < waiting; ++st)
+                for (std::size_t q = 0; q < kSteps; ++q) {
+                    const unsigned bits = pending[st].want[q][h];
+                    if (bits == 0) continue;
+                    const std::size_t at = pending[st].at[q][h];
+                    V t, r[3];
 #if HWY_TARGET <= HWY_AVX3
-                // 8 segments at a time, the wanted ones compressed to the
-                // front (the pack's padding takes the rest of the vector:
-                // k stays within kCapacity, checked above)
-                static_assert(SegmentPack::kPadded >= SegmentPack::kCapacity + 8);
-                const std::uint32_t want = ~skip & all;
-                for (unsigned i = 0; i < n; i += 8) {
-                    const auto bits = static_cast<__mmask8>((want >> i) & 0xFFu);
-                    _mm512_storeu_pd(pack.vf + k, _mm512_maskz_compress_pd(bits, _mm512_loadu_pd(e + i)));
-                    _mm512_storeu_pd(pack.vb + k, _mm512_maskz_compress_pd(bits, _mm512_loadu_pd(e + i + 1)));
-                    _mm512_storeu_pd(pack.delta + k, _mm512_set1_pd(dl));
-                    k += std::popcount(static_cast<unsigned>(bits));
-                }
+                    const auto m8 = static_cast<__mmask8>(bits);
+                    t = V{_mm512_mask_expand_pd(one_v.raw, m8, _mm512_loadu_pd(pack.transmittance + at))};
+                    for (int c = 0; c < 3; ++c)
+                        r[c] = V{_mm512_maskz_expand_pd(m8, _mm512_loadu_pd(pack.radiance[c] + at))};
 #else
-                for (unsigned i = 0; i < n; ++i) {
-                    if (((skip >> i) & 1u) != 0) continue;
-                    pack.vf[k] = e[i];
-                    pack.vb[k] = e[i + 1];
-                    pack.delta[k] = dl;
-                    ++k;
-                }
+                    HWY_ALIGN double lt[hn::MaxLanes(d)], lr[3][hn::MaxLanes(d)];
+                    std::size_t k = at;
+                    for (std::size_t i = 0; i < N; ++i) {
+                        const bool in = ((bits >> i) & 1u) != 0;
+                        lt[i] = in ? pack.transmittance[k] : 1.0;
+                        for (int c = 0; c < 3; ++c) lr[c][i] = in ? pack.radiance[c][k] : 0.0;
+                        k += in ? 1 : 0;
+                    }
+                    t = hn::Load(d, lt);
+                    for (int c = 0; c < 3; ++c) r[c] = hn::Load(d, lr[c]);
 #endif
-                pack.count = k;
-            }
-        }
-        if (carry && c > 0) {
-            e[0] = e[c - 1];
-            P.count[l] = 1;
-        } else {
-            P.count[l] = 0;
-        }
-    };
-    // End `j` (a sample index) of lane l, after the last one or past a gap
-    // (whose segments both of whose ends lie in empty macrocells are (1, 0)).
-    auto push = [&](std::size_t l, double j, double v) {
-        if (P.count[l] > 0 && j != P.last[l] + 1.0) flush(l, false);
-        P.ends[l][P.count[l]++] = v;
-        P.last[l] = j;
-        if (P.count[l] == static_cast<int>(kBatch) + 1) flush(l, true);
-    };
-    // A step's ends of lane l: the first m samples of the step (a step's
-    // samples are a prefix of its kSteps), values[q][l] at sample_at[q][l].
-    auto push_step = [&](std::size_t l, std::size_t m, const double(*at)[kPacketLanesMax],
-                         const double(*values)[kPacketGroups * kBatch]) {
-        const double j0 = at[0][l];
-        if (at[m - 1][l] == j0 + static_cast<double>(m - 1) && (P.count[l] == 0 || j0 == P.last[l] + 1.0)) {
-            const int c = P.count[l];
-            // A window of at most one end, below the zero range (flush's
-            // bits), and a step whose ends all lie below it: every segment
-            // is (1, 0), and the step's last end is all the window keeps.
-            auto below = [&] {
-                for (std::size_t q = 0; q < m; ++q)
-                    if (!(values[q][l] < src.zero_below)) return false;
-                return true;
-            };
-            if ((c == 0 || (c == 1 && P.ends[l][0] < src.zero_below)) && below()) {
-                P.ends[l][0] = values[m - 1][l];
-                P.count[l] = 1;
-                P.last[l] = j0 + static_cast<double>(m - 1);
-                return;
-            }
-            // in a row, on from the window's last end: push's appends, a
-            // full window flushed (its last end carried) where it fills
-            constexpr int kFull = static_cast<int>(kBatch) + 1;
-            for (std::size_t q = 0; q < m;) {
-                const int c = P.count[l];
-                const std::size_t take = std::min(m - q, static_cast<std::size_t>(kFull - c));
-                for (std::size_t k = 0; k < take; ++k) P.ends[l][c + static_cast<int>(k)] = values[q + k][l];
-                P.count[l] = c + static_cast<int>(take);
-                q += take;
-                P.last[l] = j0 + static_cast<double>(q - 1);
-                if (P.count[l] == kFull) {
-                    flush(l, true);
-                    if (P.stopped[l] != 0.0) return;
+                    const std::uint8_t b8 = static_cast<std::uint8_t>(bits);
+                    const M active = hn::AndNot(stopped, hn::LoadMaskBits(d, &b8));
+                    for (int c = 0; c < 3; ++c)
+                        C[c] = hn::IfThenElse(active, hn::Add(C[c], hn::Mul(tr, r[c])), C[c]);
+                    tr = hn::IfThenElse(active, hn::Mul(tr, t), tr);
+                    stopped = hn::Or(stopped, hn::And(active, hn::Lt(tr, thr_v)));
                 }
-            }
-            return;
+            hn::Store(tr, d, L.T + o);
+            for (int c = 0; c < 3; ++c) hn::Store(C[c], d, L.C[c] + o);
+            hn::Store(hn::IfThenElseZero(stopped, one_v), d, P.stopped + o);
         }
-        for (std::size_t q = 0; q < m && P.stopped[l] == 0.0; ++q) push(l, at[q][l], values[q][l]);
+        waiting = 0;
+        pack.count = 0;
     };
     for (std::size_t l = 0; l < lanes; ++l) load(l);
     const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
@@ -1225,12 +1148,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     auto finish = [&](const M* done, bool background) {
         HWY_ALIGN double mask[kPacketLanesMax];
         for (std::size_t h = 0; h < K; ++h) hn::Store(hn::IfThenElseZero(done[h], one), d, mask + h * N);
-        if constexpr (kPre) {
-            if (background)  // the last windows
-                for (std::size_t l = 0; l < lanes; ++l)
-                    if (mask[l] != 0.0) flush(l, false);
-            drain();
-        }
+        if constexpr (kPre) drain();
         for (std::size_t l = 0; l < lanes; ++l) {
             if (mask[l] == 0.0) continue;
             bool with_bg = background;
@@ -1337,15 +1255,53 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 trilinear<T>(src, cell[q][g], frac[q][g], 0,
                              std::min<std::size_t>(kBatch, lanes - g * kBatch), values[q] + g * kBatch,
                              false);
-        if constexpr (kPre) {  // the ends into their lanes' windows, in order
-            for (std::size_t l = 0; l < lanes; ++l) {
-                const auto m = static_cast<std::size_t>(sampled[l]);
-                if (m > 0 && P.stopped[l] == 0.0) push_step(l, m, sample_at, values);
+        if constexpr (kPre) {  // the step's segments into the pack
+            Step& rec = pending[waiting];
+            int k = pack.count;
+            for (std::size_t h = 0; h < K; ++h) {
+                const std::size_t o = h * N;
+                const M go = hn::AndNot(hn::Eq(hn::Load(d, P.stopped + o), one), live[h]);
+                V vf = hn::Load(d, P.prev + o), jl = hn::Load(d, P.last + o);
+                M has = hn::Eq(hn::Load(d, P.has + o), one);
+                const V dl = hn::Load(d, L.dl + o);
+                for (std::size_t q = 0; q < kSteps; ++q) {
+                    const M take = hn::And(more_of[q][h], go);  // a prefix of the step's samples
+                    const V vb = hn::Load(d, values[q] + o), j = hn::Load(d, sample_at[q] + o);
+                    const M seg = hn::And(take, hn::And(has, hn::Eq(j, hn::Add(jl, one))));
+                    const M want = hn::AndNot(hn::And(hn::Lt(vf, e), hn::Lt(vb, e)), seg);
+                    std::uint8_t bits[8] = {};
+                    hn::StoreMaskBits(d, want, bits);
+                    rec.want[q][h] = bits[0];
+                    rec.at[q][h] = static_cast<std::uint16_t>(k);
+                    if (bits[0] != 0) {
+#if HWY_TARGET <= HWY_AVX3
+                        const auto m8 = static_cast<__mmask8>(bits[0]);
+                        _mm512_storeu_pd(pack.vf + k, _mm512_maskz_compress_pd(m8, vf.raw));
+                        _mm512_storeu_pd(pack.vb + k, _mm512_maskz_compress_pd(m8, vb.raw));
+                        _mm512_storeu_pd(pack.delta + k, _mm512_maskz_compress_pd(m8, dl.raw));
+#else
+                        hn::CompressStore(vf, want, d, pack.vf + k);
+                        hn::CompressStore(vb, want, d, pack.vb + k);
+                        hn::CompressStore(dl, want, d, pack.delta + k);
+#endif
+                        k += std::popcount(static_cast<unsigned>(bits[0]));
+                    }
+                    vf = hn::IfThenElse(take, vb, vf);
+                    jl = hn::IfThenElse(take, j, jl);
+                    has = hn::Or(has, take);
+                }
+                hn::Store(vf, d, P.prev + o);
+                hn::Store(jl, d, P.last + o);
+                hn::Store(hn::IfThenElseZero(has, one), d, P.has + o);
+            }
+            if (k > pack.count) {
+                pack.count = k;
+                ++waiting;
             }
             // drained once it holds kDrainAt segments (8 vectors) rather
             // than at every step, its vectors fuller; a lane whose ray
-            // stops in a waiting window samples on until then, its later
-            // windows not composited (the same sums)
+            // stops in a waiting step samples on until then, its later
+            // segments not composited (the same sums)
             if (pack.count >= kDrainAt) drain();
         }
         bool stop = false;

@@ -303,12 +303,13 @@ void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, Packe
 /// Pre-integration in packets: each lane samples its own ray's segment
 /// ends (PacketRay's grid with offset 0: end e is sample e + 1, ends 0..n)
 /// where a segment has an end in a non-empty macrocell, and pre-integrates
-/// the segments between them in windows of kBatch + 1 consecutive ends of
-/// its ray (as integrate_preintegrated does); the windows' segments that are
-/// not (1, 0) are packed with other lanes' into whole vectors
-/// (preintegrate_pack: preintegrate_batch's operations lane by lane), so
-/// the same bits. Only where empty macrocells join (EmptySpace::joins_empty):
-/// a segment whose two ends lie in empty macrocells is then (1, 0).
+/// the segments between consecutive ends of its ray (as
+/// integrate_preintegrated's windows do); those that are not (1, 0) are
+/// packed with other lanes' into whole vectors (preintegrate_pack:
+/// preintegrate_batch's operations lane by lane) and composited in each
+/// lane's order, so the same bits. Only where empty macrocells join
+/// (EmptySpace::joins_empty: a segment whose two ends lie in empty
+/// macrocells is then (1, 0)), or where none is empty.
 struct PacketPreint {
     Model model = Model::emission_absorption;
     bool full = true;  // `preintegrated` (else `preintegrated-simple`)

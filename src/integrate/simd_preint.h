@@ -41,7 +41,7 @@ struct SegmentBatch {
 void preintegrate_batch(const BatchSource& src, Model model, bool full, double delta, const double* ends,
                         int count, std::uint32_t skip, SegmentBatch& out);
 
-/// Segments from several windows (and rays) packed into whole vectors:
+/// Segments from several windows or steps (and rays) packed into whole vectors:
 /// segment i runs vf[i] → vb[i] over delta[i]. Arrays are padded to whole
 /// vectors of the widest target (their values past `count` read, not used).
 struct SegmentPack {

@@ -253,7 +253,8 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     const bool point = batch.rule != simd::PointRule::none && !s.jitter;
     // So do integrate_preintegrated's SIMD windows (simd::PacketPreint)
     // where empty macrocells join, and where nothing is skipped (skipping
-    // off, or no macrocell empty): their windows then hold every segment.
+    // off, or no macrocell empty): every segment of a ray is then in its
+    // one run.
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
     const bool preint_joins = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
