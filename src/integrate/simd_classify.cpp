@@ -1059,7 +1059,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         } else {
             L.load(l, nullptr, -1, false);
         }
-        P.has[l] = P.queued[l] = P.stopped[l] = 0.0;
+        P.prev[l] = P.last[l] = P.has[l] = P.queued[l] = P.stopped[l] = 0.0;
     };
     // Pre-integration: each step's segments, lane by lane (an end and the
     // one before it, consecutive samples of the ray; those across a gap
