@@ -1061,6 +1061,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         }
         P.prev[l] = P.last[l] = P.has[l] = P.queued[l] = P.stopped[l] = 0.0;
     };
+    const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
     // Pre-integration: each step's segments, lane by lane (an end and the
     // one before it, consecutive samples of the ray; those across a gap
     // lie in empty macrocells that join, (1, 0)), the wanted ones (an end
@@ -1081,10 +1082,10 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     static_assert(SegmentPack::kPadded >= SegmentPack::kCapacity + 8);  // whole vectors read and written
     Step pending[kDrainAt + 1];
     std::size_t waiting = 0;  // steps in `pending`
-    const V thr_v = hn::Set(d, termination);
     auto drain = [&] {
         if (waiting == 0) return;
         preintegrate_pack(src, pre->model, pre->full, pack);
+        // (also those after a lane's ray stops: computed, not composited)
         for (int k = 0; k < pack.count; ++k)
             if (pack.scalar[k] != 0.0) {
                 double t, r[3];
@@ -1092,12 +1093,11 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 pack.transmittance[k] = t;
                 for (int c = 0; c < 3; ++c) pack.radiance[c][k] = r[c];
             }
-        const V one_v = hn::Set(d, 1.0);
         for (std::size_t h = 0; h < K; ++h) {
             const std::size_t o = h * N;
             V tr = hn::Load(d, L.T + o), C[3];
             for (int c = 0; c < 3; ++c) C[c] = hn::Load(d, L.C[c] + o);
-            M stopped = hn::Eq(hn::Load(d, P.stopped + o), one_v);
+            M stopped = hn::Eq(hn::Load(d, P.stopped + o), one);
             for (std::size_t st = 0; st < waiting; ++st)
                 for (std::size_t q = 0; q < kSteps; ++q) {
                     const unsigned bits = pending[st].want[q][h];
@@ -1106,7 +1106,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     V t, r[3];
 #if HWY_TARGET <= HWY_AVX3
                     const auto m8 = static_cast<__mmask8>(bits);
-                    t = V{_mm512_mask_expand_pd(one_v.raw, m8, _mm512_loadu_pd(pack.transmittance + at))};
+                    t = V{_mm512_mask_expand_pd(one.raw, m8, _mm512_loadu_pd(pack.transmittance + at))};
                     for (int c = 0; c < 3; ++c)
                         r[c] = V{_mm512_maskz_expand_pd(m8, _mm512_loadu_pd(pack.radiance[c] + at))};
 #else
@@ -1126,17 +1126,16 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     for (int c = 0; c < 3; ++c)
                         C[c] = hn::IfThenElse(active, hn::Add(C[c], hn::Mul(tr, r[c])), C[c]);
                     tr = hn::IfThenElse(active, hn::Mul(tr, t), tr);
-                    stopped = hn::Or(stopped, hn::And(active, hn::Lt(tr, thr_v)));
+                    stopped = hn::Or(stopped, hn::And(active, hn::Lt(tr, thr)));
                 }
             hn::Store(tr, d, L.T + o);
             for (int c = 0; c < 3; ++c) hn::Store(C[c], d, L.C[c] + o);
-            hn::Store(hn::IfThenElseZero(stopped, one_v), d, P.stopped + o);
+            hn::Store(hn::IfThenElseZero(stopped, one), d, P.stopped + o);
         }
         waiting = 0;
         pack.count = 0;
     };
     for (std::size_t l = 0; l < lanes; ++l) load(l);
-    const V one = hn::Set(d, 1.0), thr = hn::Set(d, termination), e = hn::Set(d, src.zero_below);
     const bool shared = shared_pieces(src);
     const bool pairs = gathers_pairs<T>(src);  // then prefetched, row by row
     const std::array<std::int64_t, 4> rows = corner_rows<T>(src);
