@@ -1273,16 +1273,19 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     rec.want[q][h] = bits[0];
                     rec.at[q][h] = static_cast<std::uint16_t>(k);
                     if (bits[0] != 0) {
+                        // the wanted lanes to the front, a whole vector stored
+                        // (the pack's padding takes the rest)
+                        auto compress = [&](V v, double* to) {
 #if HWY_TARGET <= HWY_AVX3
-                        const auto m8 = static_cast<__mmask8>(bits[0]);
-                        _mm512_storeu_pd(pack.vf + k, _mm512_maskz_compress_pd(m8, vf.raw));
-                        _mm512_storeu_pd(pack.vb + k, _mm512_maskz_compress_pd(m8, vb.raw));
-                        _mm512_storeu_pd(pack.delta + k, _mm512_maskz_compress_pd(m8, dl.raw));
+                            _mm512_storeu_pd(to,
+                                             _mm512_maskz_compress_pd(static_cast<__mmask8>(bits[0]), v.raw));
 #else
-                        hn::CompressStore(vf, want, d, pack.vf + k);
-                        hn::CompressStore(vb, want, d, pack.vb + k);
-                        hn::CompressStore(dl, want, d, pack.delta + k);
+                            hn::CompressStore(v, want, d, to);
 #endif
+                        };
+                        compress(vf, pack.vf + k);
+                        compress(vb, pack.vb + k);
+                        compress(dl, pack.delta + k);
                         k += std::popcount(static_cast<unsigned>(bits[0]));
                     }
                     vf = hn::IfThenElse(take, vb, vf);

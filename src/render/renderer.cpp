@@ -257,15 +257,15 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     // one run.
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
-    const bool preint_joins = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
-    const bool eligible = s.packets && batch.data != nullptr && (point || preint_joins) &&
+    const bool preint_packets = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
+    const bool eligible = s.packets && batch.data != nullptr && (point || preint_packets) &&
                           batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
                           !s.depth_outputs;
     if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
         empty_space = EmptySpace::none(volume, kMacrocellShift);
     const auto& mc = empty_space.dims();
     packets = eligible && mc[0] * mc[1] * mc[2] >= 4;
-    packet_preint_on = packets && preint_joins;
+    packet_preint_on = packets && preint_packets;
     packet_preint = {model, s.integrator == IntegratorKind::preintegrated, &preint_scalar_segment, this};
     // (Bricked, the tracer's scalar sampler holds no samples: nothing on
     // that path reads it.)
