@@ -127,7 +127,19 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
         s.shading.enabled = true;
     }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.integrator = IntegratorKind::reference; }));
-    EXPECT_FALSE(takes([](RenderSettings& s) { s.shading.enabled = true; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.shading.enabled = true; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) {
+        s.shading.enabled = true;
+        s.integrator = IntegratorKind::riemann;
+    }));
+    EXPECT_FALSE(takes([](RenderSettings& s) {  // node gradients: the tracer shades sample by sample
+        s.shading.enabled = true;
+        s.gradient = GradientSource::precomputed;
+    }));
+    EXPECT_FALSE(takes([](RenderSettings& s) {
+        s.shading.enabled = true;
+        s.order = Order::back_to_front;
+    }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.jitter = true; }));
     EXPECT_FALSE(takes([](RenderSettings& s) { s.depth_outputs = true; }));
     // without skipping: a walk of macrocells none of which is empty
@@ -316,6 +328,53 @@ TEST(Packets, ExtinctionBeyondTheExponentialsRangeAndNanNodesAreBitIdentical) {
          {IntegratorKind::alpha, IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple})
         EXPECT_EQ(compare(nan, shell_tf(-1.5, 2.5), packet_settings(k, Model::emission_absorption), cams), 0)
             << to_string(k);
+}
+
+// Shaded with on-the-fly gradients, the point rules' packets shade each
+// lane at its own sample, under its own ray's view: the same bits as the
+// batch's shading ray by ray, under a head light, two coloured lights with
+// a highlight (squarings, and libm's pow for a shininess of 12.5), with
+// gradient opacity (also alone, under absorption and emission), at
+// midpoints, on a sheared lattice and on every target.
+TEST(Packets, ShadedFramesAreBitIdentical) {
+    const auto targets = simd::available_targets();
+    ASSERT_FALSE(targets.empty());
+    int compared = 0;
+    for (const Range& r : {kTypes[0], kTypes[3], kTypes[6]}) {
+        Volume v = shells(r.type, r.lo, r.hi);
+        if (r.type == DType::i16) {  // the chain rule's matrix not symmetric
+            const double a = 0.4;
+            v.set_axes(Mat3::from_columns({1.2 * std::cos(a), 1.2 * std::sin(a), 0},
+                                          {-std::sin(a), std::cos(a), 0.3}, {0.1, 0, 0.9}));
+        }
+        const auto cams = test::comparison_cameras(v);
+        const double range = r.hi - r.lo;
+        for (int light = 0; light < 4; ++light)  // head light; two lights; gradient opacity alone (2 models)
+            for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+                for (auto t : targets) {
+                    simd::force_target(t);
+                    const Model m = light == 2   ? Model::absorption
+                                    : light == 3 ? Model::emission
+                                                 : Model::emission_absorption;
+                    RenderSettings s = packet_settings(k, m);
+                    TransferFunction tf = shell_tf(r.lo, r.hi);
+                    s.shading.enabled = light < 2;
+                    if (light == 1) {
+                        s.shading.lights = {{{1, 0.5, -0.2}, {1, 0.8, 0.6}}, {{-0.3, 1, 0.4}, {0.2, 0.4, 1}}};
+                        s.shading.specular = 0.5;
+                        s.shading.shininess = r.type == DType::f32 ? 12.5 : 13;
+                        s.sample_point = SamplePoint::mid;
+                    }
+                    if (light >= 1)
+                        tf.gradient_opacity_points = {{0, 1}, {0.1 * range, 0.2}, {0.4 * range, 1}};
+                    EXPECT_EQ(compare(v, tf, s, cams), 0)
+                        << simd::active_target() << " " << dtype_name(r.type) << " " << to_string(k)
+                        << " case " << light;
+                    ++compared;
+                }
+        simd::force_target(0);
+    }
+    EXPECT_EQ(compared, 3 * 4 * 2 * static_cast<int>(targets.size()));
 }
 
 // A renderer that takes its volume over samples bricks: packets read them

@@ -577,20 +577,20 @@ HWY_INLINE bool shared_differences(const BatchSource& src, const V* p, std::size
     return true;
 }
 
-/// ShadedScalarMedium::factors at points j0 + b … j0 + b + N − 1 of `ray`
-/// with on-the-fly gradients: D (diffuse), S (specular) and the
+/// ShadedScalarMedium::factors at index-space points p, each lane's unit
+/// vector toward the eye `view` (ShadedScalarMedium::view: a ray's own in
+/// packets), with on-the-fly gradients: D (diffuse), S (specular) and the
 /// gradient-opacity factor f. The gradient of world_gradient (central
 /// differences of the trilinear field, then the chain rule), the factors of
 /// shade_factors and gradient_factor: the same operations in the same
 /// order, so the same bits; std::pow (a shininess that is not a whole
 /// number) and the gradient-opacity function are evaluated lane by lane.
 template <class T>
-HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0,
-                                  std::size_t b, V* diffuse, V* specular, V& opacity) {
+HWY_INLINE void ShadeFactorsAt(D d, const BatchSource& src, const V* p, const V* view, V* diffuse,
+                               V* specular, V& opacity) {
     const ShadeSetup& sh = *src.shade;
     const std::size_t N = hn::Lanes(d);
-    V p[3];
-    positions(d, ray, j0, b, p);
+    constexpr std::size_t b = 0;  // the lanes' place in the arrays below
     HWY_ALIGN double cell[3][kBatch];
     HWY_ALIGN double frac[3][kBatch];
     HWY_ALIGN double value[kBatch];
@@ -625,9 +625,8 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
         for (int j = 0; j < 3; ++j) r = exp_v::Fma(hn::Set(d, sh.world_to_index.m[j][i]), du[j], r);
         grad[i] = r;
     }
-    auto dot = [&](const V* a, const Vec3& v) {
-        return exp_v::Fma(a[2], hn::Set(d, v.z),
-                          exp_v::Fma(a[1], hn::Set(d, v.y), hn::Mul(a[0], hn::Set(d, v.x))));
+    auto dot = [&](const V* a, const V* v) {
+        return exp_v::Fma(a[2], v[2], exp_v::Fma(a[1], v[1], hn::Mul(a[0], v[0])));
     };
     const V len =
         hn::Sqrt(exp_v::Fma(grad[2], grad[2], exp_v::Fma(grad[1], grad[1], hn::Mul(grad[0], grad[0]))));
@@ -639,11 +638,15 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
         const auto normal = hn::Gt(len, hn::Zero(d));  // else lit as facing every light, no highlight
         const V inv = hn::Div(hn::Set(d, 1.0), len);
         const V n[3] = {hn::Mul(grad[0], inv), hn::Mul(grad[1], inv), hn::Mul(grad[2], inv)};
-        auto light = [&](const Vec3& l, const Rgb& color) {
+        auto light = [&](const V* l, const Rgb& color) {  // l: a direction per lane
             const V ndl = hn::Abs(dot(n, l));
-            const Vec3 hv = l + ray.view;
-            const double hl = length(hv);
-            const V ndh = hl > 0 ? hn::Div(hn::Abs(dot(n, hv)), hn::Set(d, hl)) : hn::Zero(d);
+            // shade_factors' hv = l + view, its length and n·hv/|hv|, per lane
+            const V hv[3] = {hn::Add(l[0], view[0]), hn::Add(l[1], view[1]), hn::Add(l[2], view[2])};
+            const V hl = hn::Sqrt(
+                hn::Add(hn::Add(hn::Mul(hv[0], hv[0]), hn::Mul(hv[1], hv[1])), hn::Mul(hv[2], hv[2])));
+            const M lit = hn::Gt(hl, hn::Zero(d));
+            const V ndh = hn::IfThenElseZero(
+                lit, hn::Div(hn::Abs(dot(n, hv)), hn::IfThenElse(lit, hl, hn::Set(d, 1.0))));
             V spec = hn::Zero(d);
             if (sh.ks > 0 && whole_shininess(sh.p)) {  // highlight_pow's squarings
                 auto n = static_cast<unsigned>(sh.p);
@@ -671,9 +674,13 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
             }
         };
         if (sh.lights.empty()) {
-            light(ray.view, {1, 1, 1});
+            light(view, {1, 1, 1});
         } else {
-            for (const Light& l : sh.lights) light(l.direction, l.color);
+            for (const Light& l : sh.lights) {
+                const V dir[3] = {hn::Set(d, l.direction.x), hn::Set(d, l.direction.y),
+                                  hn::Set(d, l.direction.z)};
+                light(dir, l.color);
+            }
         }
     }
     opacity = hn::Set(d, 1.0);
@@ -683,6 +690,16 @@ HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ra
         for (std::size_t l = 0; l < N; ++l) x[l] = sh.modulate->gradient_factor(x[l]);
         opacity = hn::Load(d, x);
     }
+}
+
+/// ShadeFactorsAt for the points j0 + b … j0 + b + N − 1 of `ray`.
+template <class T>
+HWY_INLINE void ShadeFactorsLanes(D d, const BatchSource& src, const RayGrid& ray, std::int64_t j0,
+                                  std::size_t b, V* diffuse, V* specular, V& opacity) {
+    V p[3];
+    positions(d, ray, j0, b, p);
+    const V view[3] = {hn::Set(d, ray.view.x), hn::Set(d, ray.view.y), hn::Set(d, ray.view.z)};
+    ShadeFactorsAt<T>(d, src, p, view, diffuse, specular, opacity);
 }
 
 /// ShadedScalarMedium::shade of the samples j0 + b … j0 + b + N − 1: σ and
@@ -814,13 +831,15 @@ struct PacketLanes {
     HWY_ALIGN double next_start[kPacketQueue][L], next_end[kPacketQueue][L];
     HWY_ALIGN double w[L];  // where the walk goes on
     HWY_ALIGN double T[L], C[3][L];
-    HWY_ALIGN double live[L];  // 1: the lane holds a ray
-    HWY_ALIGN double main[L];  // the ray's main axis (its largest |dp|): 0, 1 or 2
-    HWY_ALIGN double sure[L];  // 1: its empty runs' exits need no check (exits_are_sure)
+    HWY_ALIGN double live[L];     // 1: the lane holds a ray
+    HWY_ALIGN double main[L];     // the ray's main axis (its largest |dp|): 0, 1 or 2
+    HWY_ALIGN double sure[L];     // 1: its empty runs' exits need no check (exits_are_sure)
+    HWY_ALIGN double view[3][L];  // shaded: the unit vector toward the eye (ShadedScalarMedium::view)
     std::int64_t ray[L];
 
-    /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values).
-    void load(std::size_t l, const PacketRay* r, std::int64_t k, bool exit_sure) {
+    /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values);
+    /// shaded, with the lattice's index-to-world matrix (else nullptr).
+    void load(std::size_t l, const PacketRay* r, std::int64_t k, bool exit_sure, const Mat3* index_to_world) {
         ray[l] = k;
         live[l] = r != nullptr ? 1.0 : 0.0;
         for (int a = 0; a < 3; ++a) {
@@ -831,6 +850,11 @@ struct PacketLanes {
             C[a][l] = 0.0;
         }
         main[l] = r != nullptr ? packet_main_axis(r->dp) : 0.0;
+        if (index_to_world != nullptr) {
+            const Vec3 v = r != nullptr ? view_toward_eye(*index_to_world, {r->dp[0], r->dp[1], r->dp[2]})
+                                        : Vec3{0, 0, 1};
+            for (int a = 0; a < 3; ++a) view[a][l] = v[a];
+        }
         sure[l] = r != nullptr && exit_sure ? 1.0 : 0.0;
         tn[l] = r != nullptr ? r->t_near : 0.0;
         dl[l] = r != nullptr ? r->delta : 0.0;
@@ -970,8 +994,11 @@ HWY_INLINE void WalkLanes(D d, const PacketWalk& w, PacketLanes& L, std::size_t 
 }
 
 /// The segments of one sample per lane (ClassifyBatch's operations: the
-/// transfer function, the model, the rule), (1, 0) where `zero`.
-HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl, M zero, V& t, V* rad) {
+/// transfer function, kShaded the shading at the samples' points p under
+/// each lane's `view`, the model, the rule), (1, 0) where `zero`.
+template <class T, bool kShaded>
+HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl, M zero, const V* p,
+                             const V* view, V& t, V* rad) {
     const V one = hn::Set(d, 1.0);
     V r[3];
     V sigma;
@@ -985,9 +1012,17 @@ HWY_INLINE void LaneSegments(D d, const BatchSource& src, bool shared, V v, V dl
         sigma = r[0];
         eval(d, *src.color, v, r);
     }
-    V g[3];  // ScalarMedium::classify, then apply_model
-    for (int k = 0; k < 3; ++k)
-        g[k] = src.model == Model::absorption ? hn::Zero(d) : (src.associated ? r[k] : hn::Mul(r[k], sigma));
+    V g[3];  // ScalarMedium::classify, ShadeLanes, then apply_model
+    for (int k = 0; k < 3; ++k) g[k] = src.associated ? r[k] : hn::Mul(r[k], sigma);
+    if constexpr (kShaded) {
+        V diffuse[3], specular[3], opacity;
+        ShadeFactorsAt<T>(d, src, p, view, diffuse, specular, opacity);
+        for (int c = 0; c < 3; ++c)
+            g[c] = hn::Mul(exp_v::Fma(g[c], diffuse[c], hn::Mul(sigma, specular[c])), opacity);
+        sigma = hn::Mul(sigma, opacity);
+    }
+    if (src.model == Model::absorption)
+        for (V& gk : g) gk = hn::Zero(d);
     const V sa = src.model == Model::emission ? hn::Zero(d) : sigma;
     const V x = hn::Mul(sa, dl);
     V weight;
@@ -1039,7 +1074,7 @@ struct PreintLanes {
     HWY_ALIGN double stopped[L];  // 1: below the termination threshold
 };
 
-template <class T, bool kPre>
+template <class T, bool kPre, bool kShaded>
 void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const PacketRay* rays,
                          std::size_t count, double termination, const double* bg, PacketResult* out,
                          const PacketPreint* pre) {
@@ -1049,15 +1084,19 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     PacketLanes L;
     PreintLanes P;
     std::size_t next = 0;
+    // shaded (point rules only): each lane's view, and its samples' places
+    static_assert(!(kPre && kShaded));
+    const Mat3* to_world = kShaded ? &src.shade->index_to_world : nullptr;
     auto load = [&](std::size_t l) {
         if (next < count) {
             L.load(l, rays + next, static_cast<std::int64_t>(next),
                    exits_are_sure(rays[next].dp, rays[next].delta, rays[next].A, rays[next].B, rays[next].p0,
-                                  w.nodes));
+                                  w.nodes),
+                   to_world);
             if constexpr (kPre) L.n[l] += 1.0;  // ends 0..n: samples 1..n + 1
             ++next;
         } else {
-            L.load(l, nullptr, -1, false);
+            L.load(l, nullptr, -1, false, to_world);
         }
         P.prev[l] = P.last[l] = P.has[l] = P.queued[l] = P.stopped[l] = 0.0;
     };
@@ -1110,7 +1149,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     for (int c = 0; c < 3; ++c)
                         r[c] = V{_mm512_maskz_expand_pd(m8, _mm512_loadu_pd(pack.radiance[c] + at))};
 #else
-                    HWY_ALIGN double lt[hn::MaxLanes(d)], lr[3][hn::MaxLanes(d)];
+                    HWY_ALIGN double lt[hn::MaxLanes(d)] = {},
+                                     lr[3][hn::MaxLanes(d)] = {};  // (all N written below)
                     std::size_t k = at;
                     for (std::size_t i = 0; i < N; ++i) {
                         const bool in = ((bits >> i) & 1u) != 0;
@@ -1224,7 +1264,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const V j = hn::IfThenElse(here, hn::Add(i, qq), jn);
                 more_of[q][h] = hn::And(live[h], hn::Or(here, hn::Le(jn, ne)));
                 steps = hn::IfThenElse(more_of[q][h], hn::Add(steps, one), steps);
-                if constexpr (kPre) hn::Store(j, d, sample_at[q] + h * N);
+                if constexpr (kPre || kShaded) hn::Store(j, d, sample_at[q] + h * N);
                 LanePositions(d, L, h * N, j, p);
                 for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[q][g], frac[q][g]);
             }
@@ -1316,13 +1356,18 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 V tr = hn::Load(d, L.T + o);
                 V C[3];
                 for (int k = 0; k < 3; ++k) C[k] = hn::Load(d, L.C[k] + o);
+                V view[3], p[3];
+                if constexpr (kShaded)
+                    for (int a = 0; a < 3; ++a) view[a] = hn::Load(d, L.view[a] + o);
                 for (std::size_t q = 0; q < kSteps; ++q) {
                     // sample q, unless the run has no more or an earlier one stopped the ray
                     const M more = q == 0 ? more_of[0][h] : hn::AndNot(hn::Lt(tr, thr), more_of[q][h]);
                     const M zero = hn::Or(hn::Lt(hn::Load(d, values[q] + o), e), hn::Not(more));
                     if (hn::AllTrue(d, zero)) continue;
                     V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
-                    LaneSegments(d, src, shared, hn::Load(d, values[q] + o), dl, zero, t, rad);
+                    if constexpr (kShaded) LanePositions(d, L, o, hn::Load(d, sample_at[q] + o), p);
+                    LaneSegments<T, kShaded>(d, src, shared, hn::Load(d, values[q] + o), dl, zero, p, view, t,
+                                             rad);
                     // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
                     for (int k = 0; k < 3; ++k) C[k] = hn::Add(C[k], hn::Mul(tr, rad[k]));
                     tr = hn::Mul(tr, t);
@@ -1461,9 +1506,11 @@ void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* 
                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre) {
     visit_dtype(src.type, [&]<class T>(T*) {
         if (pre != nullptr)
-            trace_packets_typed<T, true>(src, w, rays, count, termination, bg, out, pre);
+            trace_packets_typed<T, true, false>(src, w, rays, count, termination, bg, out, pre);
+        else if (src.shade != nullptr)
+            trace_packets_typed<T, false, true>(src, w, rays, count, termination, bg, out, nullptr);
         else
-            trace_packets_typed<T, false>(src, w, rays, count, termination, bg, out, nullptr);
+            trace_packets_typed<T, false, false>(src, w, rays, count, termination, bg, out, nullptr);
     });
 }
 

@@ -229,7 +229,8 @@ void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t 
                        std::uint64_t* below = nullptr);
 
 /// Ray packets (docs/performance.md "Ray packets"): the point-sampled
-/// quadratures (BatchSource::rule, unshaded, front to back, with skipping)
+/// quadratures (BatchSource::rule, shaded with BatchSource::shade or not,
+/// front to back, with skipping)
 /// traced several rays at a time, one ray per lane, each lane walking its
 /// own ray's macrocells and evaluating its own samples, with the same
 /// operations on each lane as classify_batch and RunFinder on that ray, so

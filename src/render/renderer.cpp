@@ -246,7 +246,7 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch.bricks_z = bricks.bricks_z();
     }
     // Ray packets repeat integrate_point_sampled's SIMD path with skipping
-    // (front to back, unshaded, no depth outputs, no jitter), and without:
+    // (front to back, shaded or not, no depth outputs, no jitter), and without:
     // where nothing is skipped (skipping off, or no macrocell empty) they
     // walk macrocells none of which is empty (EmptySpace::none), each ray's
     // span one run, as the one-by-one path's zero split takes it.
@@ -258,9 +258,11 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
     const bool preint_packets = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
-    const bool eligible = s.packets && batch.data != nullptr && (point || preint_packets) &&
-                          batch.shade == nullptr && !gradient_work && s.order == Order::front_to_back &&
-                          !s.depth_outputs;
+    // Shaded, the point rules' packets shade their lanes as the batch does
+    // (on-the-fly gradients: batch.shade); pre-integration's do not shade.
+    const bool eligible =
+        s.packets && batch.data != nullptr && (point || (preint_packets && !gradient_work)) &&
+        (!gradient_work || batch.shade != nullptr) && s.order == Order::front_to_back && !s.depth_outputs;
     if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
         empty_space = EmptySpace::none(volume, kMacrocellShift);
     const auto& mc = empty_space.dims();

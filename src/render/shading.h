@@ -34,6 +34,12 @@ struct ShadeFactors {
     double opacity = 1;
 };
 
+/// The unit vector toward the eye of a ray whose index-space direction is dp.
+inline Vec3 view_toward_eye(const Mat3& index_to_world, const Vec3& dp) {
+    const Vec3 d = index_to_world * dp;
+    return d * (-1.0 / length(d));
+}
+
 /// Half the step of the central differences, in voxels.
 inline constexpr double kGradientStep = 0.5;
 
@@ -120,10 +126,7 @@ struct ShadedScalarMedium : ScalarMedium<T> {
     GridSampler<float> grads{};  // setup->gradients, when there is one
     Vec3 view{0, 0, 1};
 
-    void set_ray(const RaySpan& sp) {
-        const Vec3 d = setup->index_to_world * sp.dp;
-        view = d * (-1.0 / length(d));
-    }
+    void set_ray(const RaySpan& sp) { view = view_toward_eye(setup->index_to_world, sp.dp); }
     [[nodiscard]] Vec3 gradient(const Vec3& p) const {
         if (setup->gradients != nullptr) {
             const auto cell = grads.cell(p);
