@@ -122,7 +122,7 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
         s.integrator = IntegratorKind::preintegrated;
         s.order = Order::back_to_front;
     }));
-    EXPECT_FALSE(takes([](RenderSettings& s) {
+    EXPECT_TRUE(takes([](RenderSettings& s) {
         s.integrator = IntegratorKind::preintegrated;
         s.shading.enabled = true;
     }));
@@ -331,11 +331,13 @@ TEST(Packets, ExtinctionBeyondTheExponentialsRangeAndNanNodesAreBitIdentical) {
 }
 
 // Shaded with on-the-fly gradients, the point rules' packets shade each
-// lane at its own sample, under its own ray's view: the same bits as the
-// batch's shading ray by ray, under a head light, two coloured lights with
-// a highlight (squarings, and libm's pow for a shininess of 12.5), with
+// lane at its own sample, under its own ray's view, and pre-integration's
+// each packed segment at its midpoint: the same bits as the batch's
+// shading ray by ray, under a head light, two coloured lights with a
+// highlight (squarings, and libm's pow for a shininess of 12.5), with
 // gradient opacity (also alone, under absorption and emission), at
-// midpoints, on a sheared lattice and on every target.
+// midpoints, on a sheared lattice and on every target; and where optical
+// depths beyond the exponential's range leave segments to the scalar code.
 TEST(Packets, ShadedFramesAreBitIdentical) {
     const auto targets = simd::available_targets();
     ASSERT_FALSE(targets.empty());
@@ -350,7 +352,8 @@ TEST(Packets, ShadedFramesAreBitIdentical) {
         const auto cams = test::comparison_cameras(v);
         const double range = r.hi - r.lo;
         for (int light = 0; light < 4; ++light)  // head light; two lights; gradient opacity alone (2 models)
-            for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+            for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated,
+                           IntegratorKind::preintegrated_simple})
                 for (auto t : targets) {
                     simd::force_target(t);
                     const Model m = light == 2   ? Model::absorption
@@ -374,7 +377,16 @@ TEST(Packets, ShadedFramesAreBitIdentical) {
                 }
         simd::force_target(0);
     }
-    EXPECT_EQ(compared, 3 * 4 * 2 * static_cast<int>(targets.size()));
+    EXPECT_EQ(compared, 3 * 4 * 4 * static_cast<int>(targets.size()));
+    const Volume v = shells(DType::f32, -1.5, 2.5);
+    for (auto k :
+         {IntegratorKind::alpha, IntegratorKind::preintegrated, IntegratorKind::preintegrated_simple}) {
+        RenderSettings s = packet_settings(k, Model::emission_absorption);
+        s.shading.enabled = true;
+        TransferFunction tf = shell_tf(-1.5, 2.5, false, 1e3);
+        tf.gradient_opacity_points = {{0, 1}, {0.4, 0.2}, {1.6, 1}};
+        EXPECT_EQ(compare(v, tf, s, test::comparison_cameras(v)), 0) << to_string(k) << " beyond the range";
+    }
 }
 
 // A renderer that takes its volume over samples bricks: packets read them

@@ -309,27 +309,8 @@ RayResult preintegrated_ray(const Medium& medium, const RaySpan& span, const Ren
         val[slot] = medium.end_sample(grid.at(j));
         return val[slot];
     };
-    // Shading with the gradient at the segment's midpoint, taken as
-    // constant over the segment (Lum, Wilson and Ma 2004): g' = g·D + σ·S
-    // integrates to D·E + S·∫σ·e^{−τ} = D·E + S·(1 − t), or D·E + S·τ
-    // without self-attenuation.
-    //
-    // Gradient opacity scales σ and g by f, constant over the segment:
-    // without self-attenuation exactly E' = f·E, t' = t^f; with it,
-    // t' = t^f and E' = E·(1 − t^f)/(1 − t) (opacity-weighted, exact where
-    // the TF is constant over the segment).
-    auto shaded = [full](Segment seg, const auto& sf) {
-        double t = seg.transmittance;
-        if (sf.opacity != 1.0) {
-            const double tf = std::pow(t, sf.opacity);
-            const double scale = !full ? sf.opacity : (t < 1.0 ? (1.0 - tf) / (1.0 - t) : sf.opacity);
-            for (double& r : seg.radiance) r *= scale;
-            seg.transmittance = t = tf;
-        }
-        const double a = full ? 1.0 - t : (t > 0.0 ? -std::log(t) : 0.0);
-        for (int c = 0; c < 3; ++c) seg.radiance[c] = seg.radiance[c] * sf.diffuse[c] + a * sf.specular[c];
-        return seg;
-    };
+    // Shading with the gradient at the segment's midpoint (shade_segment).
+    auto shaded = [full](const Segment& seg, const auto& sf) { return shade_segment(seg, sf, full); };
     auto segment = [&](std::int64_t i) {
         const End f = end(i - 1), b = end(i);
         if constexpr (Medium::kShaded) {

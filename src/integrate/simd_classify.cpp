@@ -1084,8 +1084,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     PacketLanes L;
     PreintLanes P;
     std::size_t next = 0;
-    // shaded (point rules only): each lane's view, and its samples' places
-    static_assert(!(kPre && kShaded));
+    // shaded: each lane's view, and its samples' places (pre-integrated:
+    // each packed segment's midpoint and view, in `shading`)
     const Mat3* to_world = kShaded ? &src.shade->index_to_world : nullptr;
     auto load = [&](std::size_t l) {
         if (next < count) {
@@ -1121,6 +1121,58 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     static_assert(SegmentPack::kPadded >= SegmentPack::kCapacity + 8);  // whole vectors read and written
     Step pending[kDrainAt + 1];
     std::size_t waiting = 0;  // steps in `pending`
+    struct ShadingPack {      // shaded: the pack's segments' midpoints and views
+        HWY_ALIGN double mid[3][SegmentPack::kPadded], view[3][SegmentPack::kPadded];
+    };
+    ShadingPack shading;
+    // integrate_preintegrated's shaded segments: the factors at each one's
+    // midpoint a vector at a time (those the scalar code computes, from its
+    // factors), then shade_segment, unless the segment is (1, 0)
+    auto shade_pack = [&] {
+        const ShadeSetup& sh = *src.shade;
+        GridSampler<T> grid;  // x-fastest: shaded volumes are not in bricks
+        grid.data = static_cast<const T*>(src.data);
+        grid.nx = src.nx;
+        grid.ny = src.ny;
+        grid.nz = src.nz;
+        for (std::size_t k0 = 0; k0 < static_cast<std::size_t>(pack.count); k0 += N) {
+            const std::size_t in = std::min(N, static_cast<std::size_t>(pack.count) - k0);
+            const M lanes_in = hn::FirstN(d, in);
+            V pm[3], vw[3], fd[3], fs[3], fo;
+            for (int a = 0; a < 3; ++a) {
+                pm[a] = hn::IfThenElseZero(lanes_in, hn::Load(d, shading.mid[a] + k0));
+                vw[a] = hn::IfThenElseZero(lanes_in, hn::Load(d, shading.view[a] + k0));
+            }
+            ShadeFactorsAt<T>(d, src, pm, vw, fd, fs, fo);
+            HWY_ALIGN double sd[3][hn::MaxLanes(d)], ss[3][hn::MaxLanes(d)], so[hn::MaxLanes(d)];
+            for (int c = 0; c < 3; ++c) {
+                hn::Store(fd[c], d, sd[c]);
+                hn::Store(fs[c], d, ss[c]);
+            }
+            hn::Store(fo, d, so);
+            for (std::size_t l = 0; l < in; ++l) {
+                const std::size_t k = k0 + l;
+                Segment seg{pack.transmittance[k],
+                            {pack.radiance[0][k], pack.radiance[1][k], pack.radiance[2][k]}};
+                if (seg.transmittance == 1.0 && seg.radiance == Rgb{0, 0, 0}) continue;  // nothing to shade
+                ShadeFactors sf;
+                if (pack.scalar[k] != 0.0) {
+                    const Vec3 p{shading.mid[0][k], shading.mid[1][k], shading.mid[2][k]};
+                    sf = factors_of(sh, world_gradient(grid, p, sh.world_to_index),
+                                    {shading.view[0][k], shading.view[1][k], shading.view[2][k]});
+                } else {
+                    for (int c = 0; c < 3; ++c) {
+                        sf.diffuse[c] = sd[c][l];
+                        sf.specular[c] = ss[c][l];
+                    }
+                    sf.opacity = so[l];
+                }
+                seg = shade_segment(seg, sf, pre->full);
+                pack.transmittance[k] = seg.transmittance;
+                for (int c = 0; c < 3; ++c) pack.radiance[c][k] = seg.radiance[c];
+            }
+        }
+    };
     auto drain = [&] {
         if (waiting == 0) return;
         preintegrate_pack(src, pre->model, pre->full, pack);
@@ -1132,6 +1184,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 pack.transmittance[k] = t;
                 for (int c = 0; c < 3; ++c) pack.radiance[c][k] = r[c];
             }
+        if constexpr (kShaded) shade_pack();
         for (std::size_t h = 0; h < K; ++h) {
             const std::size_t o = h * N;
             V tr = hn::Load(d, L.T + o), C[3];
@@ -1326,6 +1379,14 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                         compress(vf, pack.vf + k);
                         compress(vb, pack.vb + k);
                         compress(dl, pack.delta + k);
+                        if constexpr (kShaded) {  // segment j − 1's midpoint: t_near + (j − 1.5)·δ
+                            V pm[3];
+                            LanePositions(d, L, o, hn::Sub(j, hn::Set(d, 0.5)), pm);
+                            for (int a = 0; a < 3; ++a) {
+                                compress(pm[a], shading.mid[a] + k);
+                                compress(hn::Load(d, L.view[a] + o), shading.view[a] + k);
+                            }
+                        }
                         k += std::popcount(static_cast<unsigned>(bits[0]));
                     }
                     vf = hn::IfThenElse(take, vb, vf);
@@ -1505,7 +1566,9 @@ void PreparePacketRays(const PacketFrame& f, const PacketRaysIn& in, PacketRay* 
 void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* rays, std::size_t count,
                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre) {
     visit_dtype(src.type, [&]<class T>(T*) {
-        if (pre != nullptr)
+        if (pre != nullptr && src.shade != nullptr)
+            trace_packets_typed<T, true, true>(src, w, rays, count, termination, bg, out, pre);
+        else if (pre != nullptr)
             trace_packets_typed<T, true, false>(src, w, rays, count, termination, bg, out, pre);
         else if (src.shade != nullptr)
             trace_packets_typed<T, false, true>(src, w, rays, count, termination, bg, out, nullptr);

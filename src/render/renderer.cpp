@@ -258,11 +258,11 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     const bool preint =
         s.integrator == IntegratorKind::preintegrated || s.integrator == IntegratorKind::preintegrated_simple;
     const bool preint_packets = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
-    // Shaded, the point rules' packets shade their lanes as the batch does
-    // (on-the-fly gradients: batch.shade); pre-integration's do not shade.
-    const bool eligible =
-        s.packets && batch.data != nullptr && (point || (preint_packets && !gradient_work)) &&
-        (!gradient_work || batch.shade != nullptr) && s.order == Order::front_to_back && !s.depth_outputs;
+    // Shaded, packets shade their samples (or segments) as the batch does
+    // (on-the-fly gradients: batch.shade).
+    const bool eligible = s.packets && batch.data != nullptr && (point || preint_packets) &&
+                          (!gradient_work || batch.shade != nullptr) && s.order == Order::front_to_back &&
+                          !s.depth_outputs;
     if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
         empty_space = EmptySpace::none(volume, kMacrocellShift);
     const auto& mc = empty_space.dims();

@@ -110,6 +110,36 @@ inline ShadeFactors shade_factors(const ShadeSetup& s, const Vec3& grad, const V
     return f;
 }
 
+/// The factors of a sample whose gradient is g under `view`: lighting
+/// (where s.light) and gradient opacity (where s.modulate).
+inline ShadeFactors factors_of(const ShadeSetup& s, const Vec3& g, const Vec3& view) {
+    ShadeFactors f = s.light ? shade_factors(s, g, view) : ShadeFactors{};
+    if (s.modulate != nullptr) f.opacity = s.modulate->gradient_factor(length(g));
+    return f;
+}
+
+/// A pre-integrated segment shaded with the factors at its midpoint, taken
+/// as constant over the segment (Lum, Wilson and Ma 2004): g' = g·D + σ·S
+/// integrates to D·E + S·∫σ·e^{−τ} = D·E + S·(1 − t), or D·E + S·τ
+/// without self-attenuation (`full` false).
+///
+/// Gradient opacity scales σ and g by f, constant over the segment:
+/// without self-attenuation exactly E' = f·E, t' = t^f; with it,
+/// t' = t^f and E' = E·(1 − t^f)/(1 − t) (opacity-weighted, exact where
+/// the TF is constant over the segment).
+inline Segment shade_segment(Segment seg, const ShadeFactors& sf, bool full) {
+    double t = seg.transmittance;
+    if (sf.opacity != 1.0) {
+        const double tf = std::pow(t, sf.opacity);
+        const double scale = !full ? sf.opacity : (t < 1.0 ? (1.0 - tf) / (1.0 - t) : sf.opacity);
+        for (double& r : seg.radiance) r *= scale;
+        seg.transmittance = t = tf;
+    }
+    const double a = full ? 1.0 - t : (t > 0.0 ? -std::log(t) : 0.0);
+    for (int c = 0; c < 3; ++c) seg.radiance[c] = seg.radiance[c] * sf.diffuse[c] + a * sf.specular[c];
+    return seg;
+}
+
 /// Node gradients in world units (3 float32 components per node): central
 /// differences of the nodes along each lattice axis (one-sided at the
 /// border), then the chain rule through the world-to-index matrix, as
@@ -134,12 +164,7 @@ struct ShadedScalarMedium : ScalarMedium<T> {
         }
         return world_gradient(this->grid, p, setup->world_to_index);
     }
-    [[nodiscard]] ShadeFactors factors(const Vec3& p) const {
-        const Vec3 g = gradient(p);
-        ShadeFactors f = setup->light ? shade_factors(*setup, g, view) : ShadeFactors{};
-        if (setup->modulate != nullptr) f.opacity = setup->modulate->gradient_factor(length(g));
-        return f;
-    }
+    [[nodiscard]] ShadeFactors factors(const Vec3& p) const { return factors_of(*setup, gradient(p), view); }
     void shade(const Vec3& p, MediumSample& m) const {
         const ShadeFactors f = factors(p);
         for (int c = 0; c < 3; ++c)
