@@ -246,11 +246,11 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch.bricks_z = bricks.bricks_z();
     }
     // Ray packets repeat integrate_point_sampled's SIMD path with skipping
-    // (front to back, shaded or not, no depth outputs, no jitter), and without:
+    // (front to back, shaded or not, jittered or not, no depth outputs), and without:
     // where nothing is skipped (skipping off, or no macrocell empty) they
     // walk macrocells none of which is empty (EmptySpace::none), each ray's
     // span one run, as the one-by-one path's zero split takes it.
-    const bool point = batch.rule != simd::PointRule::none && !s.jitter;
+    const bool point = batch.rule != simd::PointRule::none;
     // So do integrate_preintegrated's SIMD windows (simd::PacketPreint)
     // where empty macrocells join, and where nothing is skipped (skipping
     // off, or no macrocell empty): every segment of a ray is then in its

@@ -144,11 +144,15 @@ struct Renderer::Impl {
             tp.pixels.push_back(xy);
             tp.octants.push_back(o);
         };
-        // packets: no jitter; pre-integration's ends lie at the segments' near ends
+        // pre-integration's ends lie at the segments' near ends (jitter or
+        // not, as integrate_preintegrated's); point samples where the
+        // sample_point setting puts them, or each pixel's jitter
         const double offset = packet_preint_on ? 0.0 : point_offset(s.sample_point);
+        const bool jittered = s.jitter && !packet_preint_on;
         // Without cutting, the rays' spans and walks come a vector at a time
-        // after this loop; with a cropping box or clipping planes, one at a time.
-        const bool cut = s.crop || !s.clip_planes.empty();
+        // after this loop; with a cropping box or clipping planes, or
+        // jittered (an offset per ray), one at a time.
+        const bool cut = s.crop || !s.clip_planes.empty() || jittered;
         // (sized once per tile and filled by index: no push_back per ray)
         const auto slots = static_cast<std::size_t>(count);
         for (auto& v : tp.in) v.resize(slots);
@@ -185,7 +189,7 @@ struct Renderer::Impl {
             const std::int64_t n = segment_count(span.length(), h);
             simd::PacketRay r{};
             r.delta = span.length() / static_cast<double>(n);
-            r.offset = offset;
+            r.offset = jittered ? point_offset(s.sample_point, jitter_offset(x, y, s.jitter_seed)) : offset;
             r.t_near = span.t_near;
             r.n = static_cast<double>(n);
             for (int a = 0; a < 3; ++a) {
@@ -193,7 +197,8 @@ struct Renderer::Impl {
                 r.dp[a] = span.dp[a];
             }
             int o = 0;
-            RunFinder(es, SampleGrid{&span, r.delta, offset, 1}).forward_walk(o, r.A, r.B, r.before, r.after);
+            RunFinder(es, SampleGrid{&span, r.delta, r.offset, 1})
+                .forward_walk(o, r.A, r.B, r.before, r.after);
             add(r, {x, y}, o);
         }
         if (const std::size_t k = k_in; k > 0) {
