@@ -141,7 +141,11 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
         s.order = Order::back_to_front;
     }));
     EXPECT_TRUE(takes([](RenderSettings& s) { s.jitter = true; }));
-    EXPECT_FALSE(takes([](RenderSettings& s) { s.depth_outputs = true; }));
+    EXPECT_TRUE(takes([](RenderSettings& s) { s.depth_outputs = true; }));
+    EXPECT_FALSE(takes([](RenderSettings& s) {
+        s.depth_outputs = true;
+        s.integrator = IntegratorKind::preintegrated;
+    }));
     // without skipping: a walk of macrocells none of which is empty
     EXPECT_TRUE(takes([](RenderSettings& s) { s.skip_empty = false; }));
     EXPECT_TRUE(takes([](RenderSettings& s) {
@@ -411,6 +415,48 @@ TEST(Packets, JitteredFramesAreBitIdentical) {
             }
     }
     EXPECT_EQ(compared, 2 * 3 * 3);
+}
+
+// With depth outputs, each point-sampled packet lane keeps its ray's
+// DepthTrack sums (Σ T·α·t at the segments' midpoints, the first segment
+// with α > 0): the same depth and first-hit maps, bit for bit, as the
+// one-by-one path, shaded or not, with early termination or without.
+TEST(Packets, DepthOutputsAreBitIdentical) {
+    auto same_depths = [](const Image& a, const Image& b) {
+        return a.depth.size() == b.depth.size() && !a.depth.empty() &&
+               std::memcmp(a.depth.data(), b.depth.data(), sizeof(float) * a.depth.size()) == 0 &&
+               std::memcmp(a.first_hit.data(), b.first_hit.data(), sizeof(float) * a.first_hit.size()) == 0;
+    };
+    int compared = 0, hits = 0;
+    for (const Range& r : {kTypes[0], kTypes[3], kTypes[6]}) {
+        const Volume v = shells(r.type, r.lo, r.hi);
+        const auto cams = test::comparison_cameras(v);
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
+            for (int variant = 0; variant < 3; ++variant) {  // plain; shaded; no termination, midpoints
+                RenderSettings s = packet_settings(k, Model::emission_absorption);
+                s.depth_outputs = true;
+                s.shading.enabled = variant == 1;
+                if (variant == 2) {
+                    s.termination = 0;
+                    s.sample_point = SamplePoint::mid;
+                }
+                EXPECT_EQ(compare(v, shell_tf(r.lo, r.hi), s, cams), 0)
+                    << dtype_name(r.type) << " " << to_string(k);
+                s.packets = false;
+                const Renderer one_by_one(v, shell_tf(r.lo, r.hi), s);
+                s.packets = true;
+                const Renderer packets(v, shell_tf(r.lo, r.hi), s);
+                for (const Camera& cam : cams) {
+                    const Image a = packets.render(cam), b = one_by_one.render(cam);
+                    EXPECT_TRUE(same_depths(a, b))
+                        << dtype_name(r.type) << " " << to_string(k) << " " << variant;
+                    for (float f : b.first_hit) hits += std::isfinite(f) ? 1 : 0;
+                    ++compared;
+                }
+            }
+    }
+    EXPECT_EQ(compared, 3 * 2 * 3 * 4);
+    EXPECT_GT(hits, 1000);  // the maps hold hits, not only +inf
 }
 
 // A renderer that takes its volume over samples bricks: packets read them

@@ -835,6 +835,7 @@ struct PacketLanes {
     HWY_ALIGN double main[L];     // the ray's main axis (its largest |dp|): 0, 1 or 2
     HWY_ALIGN double sure[L];     // 1: its empty runs' exits need no check (exits_are_sure)
     HWY_ALIGN double view[3][L];  // shaded: the unit vector toward the eye (ShadedScalarMedium::view)
+    HWY_ALIGN double weighted[L], first[L];  // depth outputs: DepthTrack's sums
     std::int64_t ray[L];
 
     /// Lane l takes ray k (or none, k < 0: it stays dead, at safe values);
@@ -869,6 +870,8 @@ struct PacketLanes {
             next_end[q][l] = 0.0;
         }
         T[l] = 1.0;
+        weighted[l] = 0.0;
+        first[l] = INFINITY;
     }
 };
 
@@ -1074,10 +1077,14 @@ struct PreintLanes {
     HWY_ALIGN double stopped[L];  // 1: below the termination threshold
 };
 
-template <class T, bool kPre, bool kShaded>
+/// kExtra: the instantiation that also shades (src.shade: the point
+/// rules' samples, or pre-integration's segments) and, point-sampled, keeps
+/// each ray's depths (`depth`: DepthTrack's sums), each tested at run time;
+/// the plain one does neither.
+template <class T, bool kPre, bool kExtra>
 void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const PacketRay* rays,
                          std::size_t count, double termination, const double* bg, PacketResult* out,
-                         const PacketPreint* pre) {
+                         const PacketPreint* pre, bool depth) {
     const D d;
     const std::size_t N = hn::Lanes(d), lanes = kPacketVectors * N;
     constexpr std::size_t K = kPacketVectors;
@@ -1086,7 +1093,10 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     std::size_t next = 0;
     // shaded: each lane's view, and its samples' places (pre-integrated:
     // each packed segment's midpoint and view, in `shading`)
-    const Mat3* to_world = kShaded ? &src.shade->index_to_world : nullptr;
+    const bool shaded = kExtra && src.shade != nullptr;
+    const Mat3* to_world = shaded ? &src.shade->index_to_world : nullptr;
+    // point-sampled, with `depth`: each lane's DepthTrack sums (weighted, first)
+    const bool tracked = kExtra && !kPre && depth;
     auto load = [&](std::size_t l) {
         if (next < count) {
             L.load(l, rays + next, static_cast<std::int64_t>(next),
@@ -1184,7 +1194,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 pack.transmittance[k] = t;
                 for (int c = 0; c < 3; ++c) pack.radiance[c][k] = r[c];
             }
-        if constexpr (kShaded) shade_pack();
+        if constexpr (kExtra) shade_pack();
         for (std::size_t h = 0; h < K; ++h) {
             const std::size_t o = h * N;
             V tr = hn::Load(d, L.T + o), C[3];
@@ -1249,6 +1259,10 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             const double tl = L.T[l];
             for (int c = 0; c < 3; ++c) r.radiance[c] = with_bg ? L.C[c][l] + tl * bg[c] : L.C[c][l];
             r.alpha = 1.0 - tl;
+            if (tracked) {  // DepthTrack::finish
+                r.depth = r.alpha > 0.0 ? L.weighted[l] / r.alpha : INFINITY;
+                r.first_hit = L.first[l];
+            }
             load(l);
         }
     };
@@ -1317,7 +1331,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 const V j = hn::IfThenElse(here, hn::Add(i, qq), jn);
                 more_of[q][h] = hn::And(live[h], hn::Or(here, hn::Le(jn, ne)));
                 steps = hn::IfThenElse(more_of[q][h], hn::Add(steps, one), steps);
-                if constexpr (kPre || kShaded) hn::Store(j, d, sample_at[q] + h * N);
+                if constexpr (kPre || kExtra) hn::Store(j, d, sample_at[q] + h * N);
                 LanePositions(d, L, h * N, j, p);
                 for (int a = 0; a < 3; ++a) locate(d, src, a, p[a], b, cell[q][g], frac[q][g]);
             }
@@ -1379,7 +1393,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                         compress(vf, pack.vf + k);
                         compress(vb, pack.vb + k);
                         compress(dl, pack.delta + k);
-                        if constexpr (kShaded) {  // segment j − 1's midpoint: t_near + (j − 1.5)·δ
+                        if constexpr (kExtra) {  // segment j − 1's midpoint: t_near + (j − 1.5)·δ
                             V pm[3];
                             LanePositions(d, L, o, hn::Sub(j, hn::Set(d, 0.5)), pm);
                             for (int a = 0; a < 3; ++a) {
@@ -1417,24 +1431,52 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 V tr = hn::Load(d, L.T + o);
                 V C[3];
                 for (int k = 0; k < 3; ++k) C[k] = hn::Load(d, L.C[k] + o);
-                V view[3], p[3];
-                if constexpr (kShaded)
-                    for (int a = 0; a < 3; ++a) view[a] = hn::Load(d, L.view[a] + o);
+                V view[3], p[3], weighted = hn::Zero(d), first = hn::Zero(d);
+                if constexpr (kExtra) {
+                    if (shaded)
+                        for (int a = 0; a < 3; ++a) view[a] = hn::Load(d, L.view[a] + o);
+                    if (tracked) {
+                        weighted = hn::Load(d, L.weighted + o);
+                        first = hn::Load(d, L.first + o);
+                    }
+                }
                 for (std::size_t q = 0; q < kSteps; ++q) {
                     // sample q, unless the run has no more or an earlier one stopped the ray
                     const M more = q == 0 ? more_of[0][h] : hn::AndNot(hn::Lt(tr, thr), more_of[q][h]);
                     const M zero = hn::Or(hn::Lt(hn::Load(d, values[q] + o), e), hn::Not(more));
                     if (hn::AllTrue(d, zero)) continue;
                     V t = one, rad[3] = {hn::Zero(d), hn::Zero(d), hn::Zero(d)};
-                    if constexpr (kShaded) LanePositions(d, L, o, hn::Load(d, sample_at[q] + o), p);
-                    LaneSegments<T, kShaded>(d, src, shared, hn::Load(d, values[q] + o), dl, zero, p, view, t,
-                                             rad);
+                    const V v = hn::Load(d, values[q] + o);
+                    if constexpr (kExtra) {
+                        if (shaded) {
+                            LanePositions(d, L, o, hn::Load(d, sample_at[q] + o), p);
+                            LaneSegments<T, true>(d, src, shared, v, dl, zero, p, view, t, rad);
+                        } else {
+                            LaneSegments<T, false>(d, src, shared, v, dl, zero, p, view, t, rad);
+                        }
+                        if (tracked) {  // DepthTrack::add(j, 1 − t, T before)
+                            const V j = hn::Load(d, sample_at[q] + o), tn = hn::Load(d, L.tn + o);
+                            const V alpha = hn::Sub(one, t);
+                            const M hit = hn::Gt(alpha, hn::Zero(d));
+                            const V mid = hn::Add(tn, hn::Mul(hn::Sub(j, hn::Set(d, 0.5)), dl));
+                            weighted = hn::IfThenElse(
+                                hit, hn::Add(weighted, hn::Mul(hn::Mul(tr, alpha), mid)), weighted);
+                            const V start = hn::Add(tn, hn::Mul(hn::Sub(j, one), dl));
+                            first = hn::IfThenElse(hn::And(hit, hn::Lt(start, first)), start, first);
+                        }
+                    } else {
+                        LaneSegments<T, false>(d, src, shared, v, dl, zero, p, view, t, rad);
+                    }
                     // composite (eq. (10)): the zero lanes' (1, 0) leave both unchanged
                     for (int k = 0; k < 3; ++k) C[k] = hn::Add(C[k], hn::Mul(tr, rad[k]));
                     tr = hn::Mul(tr, t);
                 }
                 for (int k = 0; k < 3; ++k) hn::Store(C[k], d, L.C[k] + o);
                 hn::Store(tr, d, L.T + o);
+                if (kExtra && tracked) {
+                    hn::Store(weighted, d, L.weighted + o);
+                    hn::Store(first, d, L.first + o);
+                }
                 mask[h] = hn::And(live[h], hn::Lt(tr, thr));
             }
             const V taken = hn::Load(d, sampled + o);
@@ -1564,16 +1606,17 @@ void PreparePacketRays(const PacketFrame& f, const PacketRaysIn& in, PacketRay* 
 }
 
 void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* rays, std::size_t count,
-                  double termination, const double* bg, PacketResult* out, const PacketPreint* pre) {
+                  double termination, const double* bg, PacketResult* out, const PacketPreint* pre,
+                  bool depth) {
     visit_dtype(src.type, [&]<class T>(T*) {
         if (pre != nullptr && src.shade != nullptr)
-            trace_packets_typed<T, true, true>(src, w, rays, count, termination, bg, out, pre);
+            trace_packets_typed<T, true, true>(src, w, rays, count, termination, bg, out, pre, false);
         else if (pre != nullptr)
-            trace_packets_typed<T, true, false>(src, w, rays, count, termination, bg, out, pre);
-        else if (src.shade != nullptr)
-            trace_packets_typed<T, false, true>(src, w, rays, count, termination, bg, out, nullptr);
+            trace_packets_typed<T, true, false>(src, w, rays, count, termination, bg, out, pre, false);
+        else if (src.shade != nullptr || depth)
+            trace_packets_typed<T, false, true>(src, w, rays, count, termination, bg, out, nullptr, depth);
         else
-            trace_packets_typed<T, false, false>(src, w, rays, count, termination, bg, out, nullptr);
+            trace_packets_typed<T, false, false>(src, w, rays, count, termination, bg, out, nullptr, false);
     });
 }
 
@@ -1654,8 +1697,9 @@ void interpolate_batch(const BatchSource& src, const RayGrid& ray, std::int64_t 
 }
 
 void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
-                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre) {
-    HWY_DYNAMIC_DISPATCH(TracePackets)(src, walk, rays, count, termination, bg, out, pre);
+                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre,
+                   bool depth) {
+    HWY_DYNAMIC_DISPATCH(TracePackets)(src, walk, rays, count, termination, bg, out, pre, depth);
 }
 
 void prepare_packet_rays(const PacketFrame& frame, const PacketRaysIn& in, PacketRay* out, int* octant,

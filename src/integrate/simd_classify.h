@@ -271,6 +271,7 @@ struct PacketWalk {
 struct PacketResult {
     double radiance[3];
     double alpha;
+    double depth, first_hit;  // with trace_packets' `depth` (else not set)
 };
 
 /// The frame's lattice for prepare_packet_rays: index = M·(world − origin),
@@ -324,10 +325,11 @@ struct PacketPreint {
 /// Traces rays[0..count) (see PacketRay) under src's rule and model (or,
 /// with `pre`, pre-integrated) with front-to-back compositing, early
 /// termination below `termination` and background `bg`: out[k] is ray k's
-/// result, as composite() would give it.
+/// result, as composite() would give it; with `depth` (point rules only),
+/// also its depths, as composite()'s DepthTrack would give them.
 void trace_packets(const BatchSource& src, const PacketWalk& walk, const PacketRay* rays, std::size_t count,
-                   double termination, const double* bg, PacketResult* out,
-                   const PacketPreint* pre = nullptr);
+                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre = nullptr,
+                   bool depth = false);
 
 /// ShadedScalarMedium::factors (on-the-fly gradients, BatchSource::shade)
 /// at points j0 .. j0 + count − 1 of `ray` (count ≤ kBatch), per lane.

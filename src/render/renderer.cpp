@@ -246,7 +246,8 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch.bricks_z = bricks.bricks_z();
     }
     // Ray packets repeat integrate_point_sampled's SIMD path with skipping
-    // (front to back, shaded or not, jittered or not, no depth outputs), and without:
+    // (front to back, shaded or not, jittered or not, with depth outputs or
+    // not), and without:
     // where nothing is skipped (skipping off, or no macrocell empty) they
     // walk macrocells none of which is empty (EmptySpace::none), each ray's
     // span one run, as the one-by-one path's zero split takes it.
@@ -260,9 +261,10 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     const bool preint_packets = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
     // Shaded, packets shade their samples (or segments) as the batch does
     // (on-the-fly gradients: batch.shade).
-    const bool eligible = s.packets && batch.data != nullptr && (point || preint_packets) &&
-                          (!gradient_work || batch.shade != nullptr) && s.order == Order::front_to_back &&
-                          !s.depth_outputs;
+    // Depth outputs: the point rules' packets keep each ray's depths.
+    const bool eligible = s.packets && batch.data != nullptr &&
+                          (point || (preint_packets && !s.depth_outputs)) &&
+                          (!gradient_work || batch.shade != nullptr) && s.order == Order::front_to_back;
     if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
         empty_space = EmptySpace::none(volume, kMacrocellShift);
     const auto& mc = empty_space.dims();

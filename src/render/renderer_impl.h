@@ -243,7 +243,15 @@ struct Renderer::Impl {
             for (std::size_t k = 0; k < count; ++k) axes |= 1u << simd::packet_main_axis(group[k].dp);
             w.along = es.along(octant, axes);
             simd::trace_packets(batch, w, group, count, s.termination, bg.data(), out,
-                                packet_preint_on ? &packet_preint : nullptr);
+                                packet_preint_on ? &packet_preint : nullptr, s.depth_outputs);
+        };
+        auto result_of = [&](const simd::PacketResult& pr) {
+            RayResult r{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha};
+            if (s.depth_outputs) {
+                r.depth = pr.depth;
+                r.first_hit = pr.first_hit;
+            }
+            return r;
         };
         tp.results.resize(tp.rays.size());
         const std::size_t count_traced = tp.rays.size();
@@ -251,8 +259,7 @@ struct Renderer::Impl {
             trace_group(tp.rays.data(), count_traced, tp.octants.front(), tp.results.data());
             for (std::size_t k = 0; k < count_traced; ++k) {
                 const simd::PacketResult& pr = tp.results[k];
-                write(tp.pixels[k][0], tp.pixels[k][1],
-                      RayResult{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha});
+                write(tp.pixels[k][0], tp.pixels[k][1], result_of(pr));
             }
             return;
         }
@@ -272,7 +279,7 @@ struct Renderer::Impl {
         for (std::size_t k = 0; k < count_traced; ++k) {
             const simd::PacketResult& pr = tp.results[k];
             const auto [x, y] = tp.pixels[tp.order[k]];
-            write(x, y, RayResult{{pr.radiance[0], pr.radiance[1], pr.radiance[2]}, pr.alpha});
+            write(x, y, result_of(pr));
         }
     }
 
