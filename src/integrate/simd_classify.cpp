@@ -1194,7 +1194,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 pack.transmittance[k] = t;
                 for (int c = 0; c < 3; ++c) pack.radiance[c][k] = r[c];
             }
-        if constexpr (kExtra) shade_pack();
+        if (shaded) shade_pack();
         for (std::size_t h = 0; h < K; ++h) {
             const std::size_t o = h * N;
             V tr = hn::Load(d, L.T + o), C[3];
@@ -1393,7 +1393,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                         compress(vf, pack.vf + k);
                         compress(vb, pack.vb + k);
                         compress(dl, pack.delta + k);
-                        if constexpr (kExtra) {  // segment j − 1's midpoint: t_near + (j − 1.5)·δ
+                        if (kExtra && shaded) {  // segment j − 1's midpoint: t_near + (j − 1.5)·δ
                             V pm[3];
                             LanePositions(d, L, o, hn::Sub(j, hn::Set(d, 0.5)), pm);
                             for (int a = 0; a < 3; ++a) {

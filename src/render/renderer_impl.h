@@ -61,8 +61,8 @@ struct Renderer::Impl {
     Volume gradients;  // precomputed node gradients (GradientSource::precomputed)
     Tracer tracer;
     /// The frame's rays go through simd::trace_packets (RenderSettings::packets):
-    /// where the tracer is the point-sampled SIMD walk it repeats (shaded
-    /// with on-the-fly gradients or not), or pre-integration's unshaded one.
+    /// where the tracer is the point-sampled or pre-integrated SIMD walk it
+    /// repeats (shaded with on-the-fly gradients or not).
     bool packets = false;
     /// With packets, pre-integrated (packet_preint; else point-sampled).
     bool packet_preint_on = false;
