@@ -27,17 +27,19 @@ else
 fi
 
 echo "== ASan + UBSan build and tests (SIMD lanes unfused: the scalar code's bits)"
-# -O1 -g1: line tables for the sanitizers' reports at half the compile time of
-# RelWithDebInfo's -O2 -g (the CI budget is 2 cores). FATHOM_SIMD_FMA=OFF:
-# the Release build's kernels fuse multiply-adds and its tests check them
-# against the scalar code within tolerances; here every SIMD test asks for
-# the scalar code's bits (tests/simd_check.h). Without the SSE4 target (the
-# Release build tests its 2 lanes of doubles): the scalar fallback's 1 lane,
-# AVX2's 4 and AVX-512's 8 remain, and the largest source file compiles in
-# 3/5 of the time (docs/development.md).
-cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
+# -Og -g1: line tables for the sanitizers' reports; -Og compiles the
+# instrumented code in half of -O1's time and its tests run about a tenth
+# longer (docs/development.md). FATHOM_SIMD_FMA=OFF: the Release build's
+# kernels fuse multiply-adds and its tests check them against the scalar code
+# within tolerances; here every SIMD test asks for the scalar code's bits
+# (tests/simd_check.h). Highway targets: the scalar fallback (its gathers are
+# plain loads, which AddressSanitizer checks) and AVX-512's eight lanes; the
+# Release build tests SSE4's two and AVX2's four against the scalar code.
+# The tests run as 8 GoogleTest shards per core: an instrumented process
+# takes about 0.6 s to start.
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-Og -g1" \
   -DFATHOM_SANITIZE=ON -DFATHOM_WERROR=ON -DFATHOM_BUILD_PYTHON=OFF -DFATHOM_SIMD_FMA=OFF \
-  -DFATHOM_HWY_DISABLED_TARGETS="HWY_SSSE3|HWY_SSE4"
+  -DFATHOM_HWY_DISABLED_TARGETS="HWY_SSSE3|HWY_SSE4|HWY_AVX2" -DFATHOM_TEST_SHARDS=$((8 * jobs))
 cmake --build build-asan --parallel "$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure --parallel "$jobs"
