@@ -1473,7 +1473,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                 }
                 for (int k = 0; k < 3; ++k) hn::Store(C[k], d, L.C[k] + o);
                 hn::Store(tr, d, L.T + o);
-                if (kExtra && tracked) {
+                if (tracked) {
                     hn::Store(weighted, d, L.weighted + o);
                     hn::Store(first, d, L.first + o);
                 }
