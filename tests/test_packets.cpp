@@ -142,7 +142,7 @@ TEST(Packets, RendererTakesThemWhereTheyRepeatThePointSampledWalk) {
     }));
     EXPECT_TRUE(takes([](RenderSettings& s) { s.jitter = true; }));
     EXPECT_TRUE(takes([](RenderSettings& s) { s.depth_outputs = true; }));
-    EXPECT_FALSE(takes([](RenderSettings& s) {
+    EXPECT_TRUE(takes([](RenderSettings& s) {
         s.depth_outputs = true;
         s.integrator = IntegratorKind::preintegrated;
     }));
@@ -431,14 +431,16 @@ TEST(Packets, DepthOutputsAreBitIdentical) {
     for (const Range& r : {kTypes[0], kTypes[3], kTypes[6]}) {
         const Volume v = shells(r.type, r.lo, r.hi);
         const auto cams = test::comparison_cameras(v);
-        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann})
-            for (int variant = 0; variant < 3; ++variant) {  // plain; shaded; no termination, midpoints
+        for (auto k : {IntegratorKind::alpha, IntegratorKind::riemann, IntegratorKind::preintegrated,
+                       IntegratorKind::preintegrated_simple})
+            for (int variant = 0; variant < 3; ++variant) {  // plain; shaded; no termination (midpoints)
                 RenderSettings s = packet_settings(k, Model::emission_absorption);
                 s.depth_outputs = true;
                 s.shading.enabled = variant == 1;
                 if (variant == 2) {
                     s.termination = 0;
-                    s.sample_point = SamplePoint::mid;
+                    if (k == IntegratorKind::alpha || k == IntegratorKind::riemann)
+                        s.sample_point = SamplePoint::mid;
                 }
                 EXPECT_EQ(compare(v, shell_tf(r.lo, r.hi), s, cams), 0)
                     << dtype_name(r.type) << " " << to_string(k);
@@ -455,7 +457,7 @@ TEST(Packets, DepthOutputsAreBitIdentical) {
                 }
             }
     }
-    EXPECT_EQ(compared, 3 * 2 * 3 * 4);
+    EXPECT_EQ(compared, 3 * 4 * 3 * 4);
     EXPECT_GT(hits, 1000);  // the maps hold hits, not only +inf
 }
 

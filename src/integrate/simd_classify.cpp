@@ -1095,8 +1095,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
     // each packed segment's midpoint and view, in `shading`)
     const bool shaded = kExtra && src.shade != nullptr;
     const Mat3* to_world = shaded ? &src.shade->index_to_world : nullptr;
-    // point-sampled, with `depth`: each lane's DepthTrack sums (weighted, first)
-    const bool tracked = kExtra && !kPre && depth;
+    // with `depth`: each lane's DepthTrack sums (weighted, first)
+    const bool tracked = kExtra && depth;
     auto load = [&](std::size_t l) {
         if (next < count) {
             L.load(l, rays + next, static_cast<std::int64_t>(next),
@@ -1135,6 +1135,10 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
         HWY_ALIGN double mid[3][SegmentPack::kPadded], view[3][SegmentPack::kPadded];
     };
     ShadingPack shading;
+    struct DepthPack {  // tracked: the pack's segments' midpoints and starts along their rays
+        HWY_ALIGN double mid[SegmentPack::kPadded], start[SegmentPack::kPadded];
+    };
+    DepthPack depths;
     // integrate_preintegrated's shaded segments: the factors at each one's
     // midpoint a vector at a time (those the scalar code computes, from its
     // factors), then shade_segment, unless the segment is (1, 0)
@@ -1200,6 +1204,11 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
             V tr = hn::Load(d, L.T + o), C[3];
             for (int c = 0; c < 3; ++c) C[c] = hn::Load(d, L.C[c] + o);
             M stopped = hn::Eq(hn::Load(d, P.stopped + o), one);
+            V weighted = hn::Zero(d), first = hn::Zero(d);
+            if (tracked) {
+                weighted = hn::Load(d, L.weighted + o);
+                first = hn::Load(d, L.first + o);
+            }
             for (std::size_t st = 0; st < waiting; ++st)
                 for (std::size_t q = 0; q < kSteps; ++q) {
                     const unsigned bits = pending[st].want[q][h];
@@ -1208,32 +1217,48 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     V t, r[3];
 #if HWY_TARGET <= HWY_AVX3
                     const auto m8 = static_cast<__mmask8>(bits);
+                    auto expand = [&](const double* from) {
+                        return V{_mm512_maskz_expand_pd(m8, _mm512_loadu_pd(from + at))};
+                    };
                     t = V{_mm512_mask_expand_pd(one.raw, m8, _mm512_loadu_pd(pack.transmittance + at))};
-                    for (int c = 0; c < 3; ++c)
-                        r[c] = V{_mm512_maskz_expand_pd(m8, _mm512_loadu_pd(pack.radiance[c] + at))};
+                    for (int c = 0; c < 3; ++c) r[c] = expand(pack.radiance[c]);
 #else
-                    HWY_ALIGN double lt[hn::MaxLanes(d)] = {},
-                                     lr[3][hn::MaxLanes(d)] = {};  // (all N written below)
-                    std::size_t k = at;
-                    for (std::size_t i = 0; i < N; ++i) {
-                        const bool in = ((bits >> i) & 1u) != 0;
-                        lt[i] = in ? pack.transmittance[k] : 1.0;
-                        for (int c = 0; c < 3; ++c) lr[c][i] = in ? pack.radiance[c][k] : 0.0;
-                        k += in ? 1 : 0;
-                    }
-                    t = hn::Load(d, lt);
-                    for (int c = 0; c < 3; ++c) r[c] = hn::Load(d, lr[c]);
+                    auto expand = [&](const double* from) {
+                        HWY_ALIGN double lanes_of[hn::MaxLanes(d)] = {};  // (all N written below)
+                        std::size_t k = at;
+                        for (std::size_t i = 0; i < N; ++i) {
+                            const bool in = ((bits >> i) & 1u) != 0;
+                            lanes_of[i] = in ? from[k] : 0.0;
+                            k += in ? 1 : 0;
+                        }
+                        return hn::Load(d, lanes_of);
+                    };
+                    const std::uint8_t b1 = static_cast<std::uint8_t>(bits);
+                    t = hn::IfThenElse(hn::LoadMaskBits(d, &b1), expand(pack.transmittance), one);
+                    for (int c = 0; c < 3; ++c) r[c] = expand(pack.radiance[c]);
 #endif
                     const std::uint8_t b8 = static_cast<std::uint8_t>(bits);
                     const M active = hn::AndNot(stopped, hn::LoadMaskBits(d, &b8));
                     for (int c = 0; c < 3; ++c)
                         C[c] = hn::IfThenElse(active, hn::Add(C[c], hn::Mul(tr, r[c])), C[c]);
+                    if (tracked) {  // DepthTrack::add(i, 1 − t, T before)
+                        const V mid = expand(depths.mid), start = expand(depths.start);
+                        const V alpha = hn::Sub(one, t);
+                        const M hit = hn::And(active, hn::Gt(alpha, hn::Zero(d)));
+                        weighted =
+                            hn::IfThenElse(hit, hn::Add(weighted, hn::Mul(hn::Mul(tr, alpha), mid)), weighted);
+                        first = hn::IfThenElse(hn::And(hit, hn::Lt(start, first)), start, first);
+                    }
                     tr = hn::IfThenElse(active, hn::Mul(tr, t), tr);
                     stopped = hn::Or(stopped, hn::And(active, hn::Lt(tr, thr)));
                 }
             hn::Store(tr, d, L.T + o);
             for (int c = 0; c < 3; ++c) hn::Store(C[c], d, L.C[c] + o);
             hn::Store(hn::IfThenElseZero(stopped, one), d, P.stopped + o);
+            if (tracked) {
+                hn::Store(weighted, d, L.weighted + o);
+                hn::Store(first, d, L.first + o);
+            }
         }
         waiting = 0;
         pack.count = 0;
@@ -1400,6 +1425,11 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                                 compress(pm[a], shading.mid[a] + k);
                                 compress(hn::Load(d, L.view[a] + o), shading.view[a] + k);
                             }
+                        }
+                        if (tracked) {  // segment j − 1: its midpoint t_near + (j − 1.5)·δ, its start
+                            const V tn = hn::Load(d, L.tn + o);
+                            compress(hn::Add(tn, hn::Mul(hn::Sub(j, hn::Set(d, 1.5)), dl)), depths.mid + k);
+                            compress(hn::Add(tn, hn::Mul(hn::Sub(j, hn::Set(d, 2.0)), dl)), depths.start + k);
                         }
                         k += std::popcount(static_cast<unsigned>(bits[0]));
                     }
@@ -1609,8 +1639,8 @@ void TracePackets(const BatchSource& src, const PacketWalk& w, const PacketRay* 
                   double termination, const double* bg, PacketResult* out, const PacketPreint* pre,
                   bool depth) {
     visit_dtype(src.type, [&]<class T>(T*) {
-        if (pre != nullptr && src.shade != nullptr)
-            trace_packets_typed<T, true, true>(src, w, rays, count, termination, bg, out, pre, false);
+        if (pre != nullptr && (src.shade != nullptr || depth))
+            trace_packets_typed<T, true, true>(src, w, rays, count, termination, bg, out, pre, depth);
         else if (pre != nullptr)
             trace_packets_typed<T, true, false>(src, w, rays, count, termination, bg, out, pre, false);
         else if (src.shade != nullptr || depth)

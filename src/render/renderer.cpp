@@ -261,9 +261,8 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     const bool preint_packets = preint && optical && (skipper() == nullptr || empty_space.joins_empty());
     // Shaded, packets shade their samples (or segments) as the batch does
     // (on-the-fly gradients: batch.shade).
-    // Depth outputs: the point rules' packets keep each ray's depths.
-    const bool eligible = s.packets && batch.data != nullptr &&
-                          (point || (preint_packets && !s.depth_outputs)) &&
+    // Depth outputs: packets keep each ray's depths.
+    const bool eligible = s.packets && batch.data != nullptr && (point || preint_packets) &&
                           (!gradient_work || batch.shade != nullptr) && s.order == Order::front_to_back;
     if (eligible && skipper() == nullptr && empty_space.dims()[0] == 0)
         empty_space = EmptySpace::none(volume, kMacrocellShift);
