@@ -1245,8 +1245,8 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                         const V mid = expand(depths.mid), start = expand(depths.start);
                         const V alpha = hn::Sub(one, t);
                         const M hit = hn::And(active, hn::Gt(alpha, hn::Zero(d)));
-                        weighted =
-                            hn::IfThenElse(hit, hn::Add(weighted, hn::Mul(hn::Mul(tr, alpha), mid)), weighted);
+                        weighted = hn::IfThenElse(hit, hn::Add(weighted, hn::Mul(hn::Mul(tr, alpha), mid)),
+                                                  weighted);
                         first = hn::IfThenElse(hn::And(hit, hn::Lt(start, first)), start, first);
                     }
                     tr = hn::IfThenElse(active, hn::Mul(tr, t), tr);
