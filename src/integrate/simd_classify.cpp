@@ -1215,6 +1215,7 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                     if (bits == 0) continue;
                     const std::size_t at = pending[st].at[q][h];
                     V t, r[3];
+                    const std::uint8_t b8 = static_cast<std::uint8_t>(bits);
 #if HWY_TARGET <= HWY_AVX3
                     const auto m8 = static_cast<__mmask8>(bits);
                     auto expand = [&](const double* from) {
@@ -1233,11 +1234,9 @@ void trace_packets_typed(const BatchSource& src, const PacketWalk& w, const Pack
                         }
                         return hn::Load(d, lanes_of);
                     };
-                    const std::uint8_t b1 = static_cast<std::uint8_t>(bits);
-                    t = hn::IfThenElse(hn::LoadMaskBits(d, &b1), expand(pack.transmittance), one);
+                    t = hn::IfThenElse(hn::LoadMaskBits(d, &b8), expand(pack.transmittance), one);
                     for (int c = 0; c < 3; ++c) r[c] = expand(pack.radiance[c]);
 #endif
-                    const std::uint8_t b8 = static_cast<std::uint8_t>(bits);
                     const M active = hn::AndNot(stopped, hn::LoadMaskBits(d, &b8));
                     for (int c = 0; c < 3; ++c)
                         C[c] = hn::IfThenElse(active, hn::Add(C[c], hn::Mul(tr, r[c])), C[c]);
