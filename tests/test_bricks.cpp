@@ -62,12 +62,15 @@ constexpr DType kPaired[] = {DType::u8, DType::i8, DType::u16, DType::i16, DType
 TEST(Bricks, EveryCellsCornersReadItsNodes) {
     for (DType type : kPaired) {
         Volume v = noise(type);
-        const Bricks b(v, false, 2);
-        // 69 × 64 × 36 cells: 3 × 2 × 2 bricks of 33³ nodes
+        Bricks built(v, false, 2);
+        const Bricks b(std::move(built));  // a moved one keeps its layout
+        // 69 × 64 × 36 cells: 3 × 2 × 2 bricks of 33³ nodes, the last slab's
+        // 5 planes of 33² nodes (its 4 planes of cells)
         EXPECT_EQ(b.bricks_x(), 3);
         EXPECT_EQ(b.bricks_y(), 2);
         EXPECT_EQ(b.bricks_z(), 2);
-        EXPECT_EQ(b.size_bytes(), 12u * 33 * 33 * 33 * dtype_size(type));
+        EXPECT_EQ(b.last_planes(), 5);
+        EXPECT_EQ(b.size_bytes(), (6u * 33 * 33 * 33 + 6u * 33 * 33 * 5) * dtype_size(type));
         EXPECT_EQ(Bricks::bytes_for(v), b.size_bytes());
         std::int64_t wrong = 0;
         visit_dtype(type, [&]<class T>(T*) {
@@ -116,6 +119,7 @@ TEST(Bricks, SimdGathersFromBricksMatchGridSampler) {
         src.bricks_x = b.bricks_x();
         src.bricks_y = b.bricks_y();
         src.bricks_z = b.bricks_z();
+        src.bricks_last_planes = b.last_planes();
         std::uniform_real_distribution<double> px(-1.0, 71.0), py(-1.0, 66.0), pz(-1.0, 38.0), dir(-3.0, 3.0);
         const double magnitude = test::largest_magnitude(v);
         for (int r = 0; r < 300; ++r) {

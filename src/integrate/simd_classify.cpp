@@ -163,6 +163,15 @@ HWY_INLINE V linear_node(D d, const BatchSource& src, const double (*cell)[kBatc
                                                                      hn::Load(d, cell[2] + b)))));
 }
 
+/// The nodes a brick of the last slab along z stores, and those of a slab
+/// of whole bricks (Bricks::cell_index).
+inline std::int64_t last_brick_nodes(const BatchSource& src) {
+    return Bricks::kNodes * Bricks::kNodes * src.bricks_last_planes;
+}
+inline std::int64_t slab_nodes(const BatchSource& src) {
+    return src.bricks_x * src.bricks_y * Bricks::kBrickNodes;
+}
+
 /// Bricks::cell_index of lanes b … b + N − 1 of the cells, in doubles
 /// (exact: every term is an integer below 2³¹).
 HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch], std::size_t b) {
@@ -175,12 +184,14 @@ HWY_INLINE V brick_node(D d, const BatchSource& src, const double (*cell)[kBatch
         local[a] = hn::Sub(c, hn::Mul(brick[a], edge));
     }
     const V nodes = hn::Set(d, static_cast<double>(Bricks::kNodes));
-    const V index =
-        hn::Add(brick[0],
-                hn::Mul(hn::Set(d, static_cast<double>(src.bricks_x)),
-                        hn::Add(brick[1], hn::Mul(hn::Set(d, static_cast<double>(src.bricks_y)), brick[2]))));
+    const V in_slab = hn::Add(brick[0], hn::Mul(hn::Set(d, static_cast<double>(src.bricks_x)), brick[1]));
+    const V brick_nodes = hn::IfThenElse(hn::Eq(brick[2], hn::Set(d, static_cast<double>(src.bricks_z - 1))),
+                                         hn::Set(d, static_cast<double>(last_brick_nodes(src))),
+                                         hn::Set(d, static_cast<double>(Bricks::kBrickNodes)));
     const V within = hn::Add(local[0], hn::Mul(nodes, hn::Add(local[1], hn::Mul(nodes, local[2]))));
-    return hn::Add(hn::Mul(index, hn::Set(d, static_cast<double>(Bricks::kBrickNodes))), within);
+    return hn::Add(hn::Add(hn::Mul(brick[2], hn::Set(d, static_cast<double>(slab_nodes(src)))),
+                           hn::Mul(in_slab, brick_nodes)),
+                   within);
 }
 
 /// GridSampler::interpolate of the corners c[0..7] ((0,0,0), (1,0,0),
@@ -200,8 +211,9 @@ HWY_INLINE V Lerp8(const V* c, V fx, V fy, V fz) {
 
 /// The samples stored, x-fastest or in bricks (their aprons included).
 inline std::int64_t stored_nodes(const BatchSource& src) {
-    return src.bricks_x > 0 ? src.bricks_x * src.bricks_y * src.bricks_z * Bricks::kBrickNodes
-                            : src.nx * src.ny * src.nz;
+    return src.bricks_x > 0
+               ? (src.bricks_z - 1) * slab_nodes(src) + src.bricks_x * src.bricks_y * last_brick_nodes(src)
+               : src.nx * src.ny * src.nz;
 }
 
 /// Nodes i and i + 1 of a row per lane, at byte offsets `o` of the first
@@ -264,15 +276,19 @@ HWY_INLINE hn::Vec<DI> cell_offsets(DI di, const BatchSource& src, const double 
                        set(size));
     static_assert(Bricks::kCells == 32);
     const auto mask = set(Bricks::kCells - 1);
-    const auto brick = hn::Add(
-        hn::ShiftRight<5>(c[0]),
-        hn::Mul(set(src.bricks_x),
-                hn::Add(hn::ShiftRight<5>(c[1]), hn::Mul(set(src.bricks_y), hn::ShiftRight<5>(c[2])))));
+    const auto bz = hn::ShiftRight<5>(c[2]);
+    const auto in_slab =
+        hn::Add(hn::ShiftRight<5>(c[0]), hn::Mul(set(src.bricks_x), hn::ShiftRight<5>(c[1])));
+    // the last slab's bricks hold fewer planes (Bricks::cell_index)
+    const auto brick_bytes =
+        hn::IfThenElse(hn::Eq(bz, set(src.bricks_z - 1)), set(last_brick_nodes(src) * size),
+                       set(Bricks::kBrickNodes * size));
     const auto within =
         hn::Add(hn::And(c[0], mask),
                 hn::Mul(set(Bricks::kNodes),
                         hn::Add(hn::And(c[1], mask), hn::Mul(set(Bricks::kNodes), hn::And(c[2], mask)))));
-    return hn::Add(hn::Mul(brick, set(Bricks::kBrickNodes * size)), hn::Mul(within, set(size)));
+    return hn::Add(hn::Add(hn::Mul(bz, set(slab_nodes(src) * size)), hn::Mul(in_slab, brick_bytes)),
+                   hn::Mul(within, set(size)));
 }
 
 /// GridSampler::interpolate of vectors of cells and fractions, the corners

@@ -34,17 +34,14 @@ std::byte* release_pages(std::byte* from, std::byte* to) {
     return from + (b - reinterpret_cast<std::uintptr_t>(from));
 }
 
-/// Bricks along an axis of n nodes: ⌈(n − 1)/kCells⌉.
-std::int64_t bricks_along(std::int64_t n) {
-    return (n - 2) / Bricks::kCells + 1;
-}
-
 }  // namespace
 
 std::uint64_t Bricks::bytes_for(const Volume& v) {
     const auto& d = v.dims();
-    return static_cast<std::uint64_t>(bricks_along(d[0]) * bricks_along(d[1]) * bricks_along(d[2])) *
-           static_cast<std::uint64_t>(kBrickNodes) * dtype_size(v.dtype());
+    const std::int64_t per_slab = bricks_along(d[0]) * bricks_along(d[1]);
+    const std::int64_t nodes = per_slab * (bricks_along(d[2]) - 1) * kBrickNodes +
+                               per_slab * kNodes * kNodes * last_planes_along(d[2]);
+    return static_cast<std::uint64_t>(nodes) * dtype_size(v.dtype());
 }
 
 Bricks::Bricks(Volume& v, bool release, int threads) {
@@ -52,6 +49,7 @@ Bricks::Bricks(Volume& v, bool release, int threads) {
     if (v.components() != 1 || d[0] < 2 || d[1] < 2 || d[2] < 2)
         throw Error("bricks", "need a 1-component volume with at least 2 samples along each axis");
     for (int a = 0; a < 3; ++a) nb_[a] = bricks_along(d[a]);
+    last_planes_ = last_planes_along(d[2]);
     const std::size_t sz = dtype_size(v.dtype());
     size_ = static_cast<std::size_t>(bytes_for(v));
     // Not zero-filled: every byte is written below, and pages are touched
@@ -65,9 +63,12 @@ Bricks::Bricks(Volume& v, bool release, int threads) {
         parallel_chunks(per_slab, threads, [&](std::int64_t b0, std::int64_t b1) {
             for (std::int64_t b = b0; b < b1; ++b) {
                 const std::int64_t bx = b % nb_[0], by = b / nb_[0];
-                std::byte* out = data_ + static_cast<std::size_t>((bz * per_slab + b) * kBrickNodes) * sz;
+                const std::int64_t planes = bz == nb_[2] - 1 ? last_planes_ : kNodes;
+                std::byte* out =
+                    data_ +
+                    static_cast<std::size_t>(bz * per_slab * kBrickNodes + b * kNodes * kNodes * planes) * sz;
                 const std::int64_t x0 = bx * kCells, run = std::min(kNodes, d[0] - x0);
-                for (std::int64_t z = 0; z < kNodes; ++z) {
+                for (std::int64_t z = 0; z < planes; ++z) {
                     const std::int64_t gz = std::min(bz * kCells + z, d[2] - 1);
                     for (std::int64_t y = 0; y < kNodes; ++y, out += kNodes * sz) {
                         const std::int64_t gy = std::min(by * kCells + y, d[1] - 1);
@@ -98,7 +99,8 @@ Bricks::~Bricks() {
 Bricks::Bricks(Bricks&& o) noexcept
     : data_(std::exchange(o.data_, nullptr)),
       size_(std::exchange(o.size_, 0)),
-      nb_{o.nb_[0], o.nb_[1], o.nb_[2]} {}
+      nb_{o.nb_[0], o.nb_[1], o.nb_[2]},
+      last_planes_(o.last_planes_) {}
 
 Bricks& Bricks::operator=(Bricks&& o) noexcept {
     if (this != &o) {
@@ -106,6 +108,7 @@ Bricks& Bricks::operator=(Bricks&& o) noexcept {
         data_ = std::exchange(o.data_, nullptr);
         size_ = std::exchange(o.size_, 0);
         std::copy(o.nb_, o.nb_ + 3, nb_);
+        last_planes_ = o.last_planes_;
     }
     return *this;
 }

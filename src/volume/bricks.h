@@ -4,7 +4,10 @@
 // x-fastest, the nodes of its far faces repeated from the next brick (or
 // the lattice's last node where the brick passes the lattice's end), so
 // that the eight corners of any cell lie in one brick and a corner and its
-// +x neighbour stay adjacent. Bricks follow one another x-fastest too.
+// +x neighbour stay adjacent. Bricks follow one another x-fastest too, and
+// those of the last slab along z store only the planes of nodes the
+// lattice has (kNodes² · last_planes() nodes each; z is the slowest axis,
+// so only that slab's places change).
 //
 // A ray crossing the volume along z then stays within 33·33 nodes of a
 // plane for 32 steps, where the x-fastest layout moves nx·ny samples per
@@ -43,13 +46,22 @@ public:
     [[nodiscard]] std::int64_t bricks_x() const { return nb_[0]; }
     [[nodiscard]] std::int64_t bricks_y() const { return nb_[1]; }
     [[nodiscard]] std::int64_t bricks_z() const { return nb_[2]; }
+    /// The planes of nodes each brick of the last slab along z stores (2 …
+    /// kNodes).
+    [[nodiscard]] std::int64_t last_planes() const { return last_planes_; }
     /// The storage index of the first corner of cell (i, j, k) (0 ≤ i ≤
     /// nx − 2, ...); its other corners follow at +1 (x), +kNodes (y) and
     /// +kNodes² (z).
     [[nodiscard]] std::int64_t cell_index(std::int64_t i, std::int64_t j, std::int64_t k) const {
-        const std::int64_t brick = i / kCells + nb_[0] * (j / kCells + nb_[1] * (k / kCells));
-        return brick * kBrickNodes + i % kCells + kNodes * (j % kCells + kNodes * (k % kCells));
+        const std::int64_t bz = k / kCells;
+        const std::int64_t per = bz == nb_[2] - 1 ? kNodes * kNodes * last_planes_ : kBrickNodes;
+        return bz * nb_[0] * nb_[1] * kBrickNodes + (i / kCells + nb_[0] * (j / kCells)) * per + i % kCells +
+               kNodes * (j % kCells + kNodes * (k % kCells));
     }
+    /// Bricks along an axis of n ≥ 2 nodes: ⌈(n − 1)/kCells⌉.
+    static std::int64_t bricks_along(std::int64_t n) { return (n - 2) / kCells + 1; }
+    /// The planes of nodes the last of the bricks along an axis of n nodes needs.
+    static std::int64_t last_planes_along(std::int64_t n) { return n - (bricks_along(n) - 1) * kCells; }
     /// The storage size of a volume's bricks, in bytes.
     static std::uint64_t bytes_for(const Volume& v);
 
@@ -57,6 +69,7 @@ private:
     std::byte* data_ = nullptr;
     std::size_t size_ = 0;
     std::int64_t nb_[3] = {0, 0, 0};
+    std::int64_t last_planes_ = kNodes;
 };
 
 }  // namespace fathom
