@@ -57,6 +57,58 @@ bool same(const Image& a, const Image& b) {
 
 constexpr DType kPaired[] = {DType::u8, DType::i8, DType::u16, DType::i16, DType::f32};
 
+/// The corners of v's cells, read through b.cell_index, that differ from v's nodes.
+std::int64_t wrong_corners(const Bricks& b, const Volume& v) {
+    const auto& d = v.dims();
+    std::int64_t wrong = 0;
+    visit_dtype(v.dtype(), [&]<class T>(T*) {
+        const T* lin = v.data<T>();
+        for (std::int64_t k = 0; k + 1 < d[2]; ++k)
+            for (std::int64_t j = 0; j + 1 < d[1]; ++j)
+                for (std::int64_t i = 0; i + 1 < d[0]; ++i) {
+                    const std::int64_t c = b.cell_index(i, j, k);
+                    for (int n = 0; n < 8; ++n) {
+                        const int dx = n & 1, dy = (n >> 1) & 1, dz = n >> 2;
+                        const T want = lin[i + dx + d[0] * (j + dy + d[1] * (k + dz))];
+                        const T got = at<T>(b, c + dx + Bricks::kNodes * (dy + Bricks::kNodes * dz));
+                        wrong += std::memcmp(&want, &got, sizeof(T)) != 0 ? 1 : 0;
+                    }
+                }
+    });
+    return wrong;
+}
+
+/// SIMD interpolation from b against GridSampler on v along `rays` random
+/// rays, every third from the far corner (the last cells of the last
+/// bricks); the samples compared, or −1 after a failure.
+int simd_matches(const Bricks& b, const Volume& v, int rays, std::mt19937& rng) {
+    const auto& d = v.dims();
+    simd::BatchSource src{b.bytes(), v.dtype(), d[0], d[1], d[2], nullptr, nullptr};
+    src.bricks_x = b.bricks_x();
+    src.bricks_y = b.bricks_y();
+    src.bricks_z = b.bricks_z();
+    src.bricks_last_planes = b.last_planes();
+    auto around = [](std::int64_t n) { return std::uniform_real_distribution<double>(-1.0, n + 1.0); };
+    auto px = around(d[0]), py = around(d[1]), pz = around(d[2]);
+    std::uniform_real_distribution<double> dir(-3.0, 3.0);
+    const double magnitude = test::largest_magnitude(v);
+    const Vec3 far{d[0] - 1.0, d[1] - 1.0, d[2] - 1.0};
+    int compared = 0;
+    for (int r = 0; r < rays; ++r) {
+        simd::RayGrid g;
+        g.p0 = r % 3 == 0 ? far : Vec3{px(rng), py(rng), pz(rng)};
+        g.dp = {dir(rng), dir(rng), dir(rng)};
+        g.delta = 0.9;
+        g.offset = 0.5;
+        g.first = 0;
+        const int n = test::batch_matches_sampler(
+            src, g, v, magnitude, std::string(dtype_name(v.dtype())) + " ray " + std::to_string(r));
+        if (n < 0) return -1;
+        compared += n;
+    }
+    return compared;
+}
+
 }  // namespace
 
 TEST(Bricks, EveryCellsCornersReadItsNodes) {
@@ -72,23 +124,31 @@ TEST(Bricks, EveryCellsCornersReadItsNodes) {
         EXPECT_EQ(b.last_planes(), 5);
         EXPECT_EQ(b.size_bytes(), (6u * 33 * 33 * 33 + 6u * 33 * 33 * 5) * dtype_size(type));
         EXPECT_EQ(Bricks::bytes_for(v), b.size_bytes());
-        std::int64_t wrong = 0;
-        visit_dtype(type, [&]<class T>(T*) {
-            const T* lin = v.data<T>();
-            for (std::int64_t k = 0; k + 1 < kDims[2]; ++k)
-                for (std::int64_t j = 0; j + 1 < kDims[1]; ++j)
-                    for (std::int64_t i = 0; i + 1 < kDims[0]; ++i) {
-                        const std::int64_t c = b.cell_index(i, j, k);
-                        for (int n = 0; n < 8; ++n) {
-                            const int dx = n & 1, dy = (n >> 1) & 1, dz = n >> 2;
-                            const T want = lin[i + dx + kDims[0] * (j + dy + kDims[1] * (k + dz))];
-                            const T got = at<T>(b, c + dx + Bricks::kNodes * (dy + Bricks::kNodes * dz));
-                            wrong += std::memcmp(&want, &got, sizeof(T)) != 0 ? 1 : 0;
-                        }
-                    }
-        });
-        EXPECT_EQ(wrong, 0) << dtype_name(type);
+        EXPECT_EQ(wrong_corners(b, v), 0) << dtype_name(type);
     }
+}
+
+// The last slab along z holds the lattice's planes only, however many: one
+// plane of cells (2 nodes), a slab's worth (33: whole bricks), one past it.
+TEST(Bricks, TheLastSlabHoldsTheLatticesPlanes) {
+    std::mt19937 rng(23);
+    for (const std::int64_t nz : {2, 3, 33, 34, 66})
+        for (DType type : {DType::u8, DType::i16, DType::f32}) {
+            const std::array<std::int64_t, 3> dims{36, 34, nz};  // 35 × 33 cells: 2 × 2 bricks a slab
+            Volume v = noise(type, dims, 11);
+            const Bricks b(v, false, 2);
+            const std::int64_t slabs = (nz - 2) / 32 + 1, planes = nz - (slabs - 1) * 32;
+            const std::string what = std::string(dtype_name(type)) + " nz " + std::to_string(nz);
+            EXPECT_EQ(b.bricks_z(), slabs) << what;
+            EXPECT_EQ(b.last_planes(), planes) << what;
+            EXPECT_EQ(b.size_bytes(),
+                      static_cast<std::size_t>(4 * ((slabs - 1) * 33 * 33 * 33 + 33 * 33 * planes)) *
+                          dtype_size(type))
+                << what;
+            EXPECT_EQ(Bricks::bytes_for(v), b.size_bytes()) << what;
+            EXPECT_EQ(wrong_corners(b, v), 0) << what;
+            ASSERT_GT(simd_matches(b, v, 30, rng), 0) << what;
+        }
 }
 
 // With release the source's pages go back as the bricks fill: the bricks
@@ -115,26 +175,9 @@ TEST(Bricks, SimdGathersFromBricksMatchGridSampler) {
     for (DType type : kPaired) {
         Volume v = noise(type);
         const Bricks b(v, false, 1);
-        simd::BatchSource src{b.bytes(), type, kDims[0], kDims[1], kDims[2], nullptr, nullptr};
-        src.bricks_x = b.bricks_x();
-        src.bricks_y = b.bricks_y();
-        src.bricks_z = b.bricks_z();
-        src.bricks_last_planes = b.last_planes();
-        std::uniform_real_distribution<double> px(-1.0, 71.0), py(-1.0, 66.0), pz(-1.0, 38.0), dir(-3.0, 3.0);
-        const double magnitude = test::largest_magnitude(v);
-        for (int r = 0; r < 300; ++r) {
-            simd::RayGrid g;
-            // every third ray from the far corner: the last cells of the last bricks
-            g.p0 = r % 3 == 0 ? Vec3{69.0, 64.0, 36.0} : Vec3{px(rng), py(rng), pz(rng)};
-            g.dp = {dir(rng), dir(rng), dir(rng)};
-            g.delta = 0.9;
-            g.offset = 0.5;
-            g.first = 0;
-            const int n = test::batch_matches_sampler(
-                src, g, v, magnitude, std::string(dtype_name(type)) + " ray " + std::to_string(r));
-            ASSERT_GE(n, 0);
-            compared += n;
-        }
+        const int n = simd_matches(b, v, 300, rng);
+        ASSERT_GE(n, 0) << dtype_name(type);
+        compared += n;
     }
     EXPECT_GE(compared, 5 * 300 * simd::kBatch);
 }
