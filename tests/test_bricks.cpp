@@ -87,7 +87,6 @@ int simd_matches(const Bricks& b, const Volume& v, int rays, std::mt19937& rng) 
     src.bricks_x = b.bricks_x();
     src.bricks_y = b.bricks_y();
     src.bricks_z = b.bricks_z();
-    src.bricks_last_planes = b.last_planes();
     auto around = [](std::int64_t n) { return std::uniform_real_distribution<double>(-1.0, n + 1.0); };
     auto px = around(d[0]), py = around(d[1]), pz = around(d[2]);
     std::uniform_real_distribution<double> dir(-3.0, 3.0);

@@ -166,7 +166,7 @@ HWY_INLINE V linear_node(D d, const BatchSource& src, const double (*cell)[kBatc
 /// The nodes a brick of the last slab along z stores, and those of a slab
 /// of whole bricks (Bricks::cell_index).
 inline std::int64_t last_brick_nodes(const BatchSource& src) {
-    return Bricks::kNodes * Bricks::kNodes * src.bricks_last_planes;
+    return Bricks::last_brick_nodes(src.nz);
 }
 inline std::int64_t slab_nodes(const BatchSource& src) {
     return src.bricks_x * src.bricks_y * Bricks::kBrickNodes;
@@ -211,9 +211,7 @@ HWY_INLINE V Lerp8(const V* c, V fx, V fy, V fz) {
 
 /// The samples stored, x-fastest or in bricks (their aprons included).
 inline std::int64_t stored_nodes(const BatchSource& src) {
-    return src.bricks_x > 0
-               ? (src.bricks_z - 1) * slab_nodes(src) + src.bricks_x * src.bricks_y * last_brick_nodes(src)
-               : src.nx * src.ny * src.nz;
+    return src.bricks_x > 0 ? Bricks::nodes_for({src.nx, src.ny, src.nz}) : src.nx * src.ny * src.nz;
 }
 
 /// Nodes i and i + 1 of a row per lane, at byte offsets `o` of the first

@@ -121,9 +121,6 @@ struct BatchSource {
     /// (volume/bricks.h; the paired sample types only, at most 1 GiB); 0:
     /// `data` is x-fastest.
     std::int64_t bricks_x = 0, bricks_y = 0, bricks_z = 0;
-    /// In bricks: the planes of nodes each brick of the last slab along z
-    /// stores (Bricks::last_planes()).
-    std::int64_t bricks_last_planes = 0;
     /// σ and c on the same knots (same_knots(*sigma, *color)): one piece
     /// lookup per value serves both. Set once with the functions, not per batch.
     bool shared_knots = false;

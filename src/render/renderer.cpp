@@ -244,7 +244,6 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         batch.bricks_x = bricks.bricks_x();
         batch.bricks_y = bricks.bricks_y();
         batch.bricks_z = bricks.bricks_z();
-        batch.bricks_last_planes = bricks.last_planes();
     }
     // Ray packets repeat integrate_point_sampled's SIMD path with skipping
     // (front to back, shaded or not, jittered or not, with depth outputs or

@@ -37,11 +37,7 @@ std::byte* release_pages(std::byte* from, std::byte* to) {
 }  // namespace
 
 std::uint64_t Bricks::bytes_for(const Volume& v) {
-    const auto& d = v.dims();
-    const std::int64_t per_slab = bricks_along(d[0]) * bricks_along(d[1]);
-    const std::int64_t nodes = per_slab * (bricks_along(d[2]) - 1) * kBrickNodes +
-                               per_slab * kNodes * kNodes * last_planes_along(d[2]);
-    return static_cast<std::uint64_t>(nodes) * dtype_size(v.dtype());
+    return static_cast<std::uint64_t>(nodes_for(v.dims())) * dtype_size(v.dtype());
 }
 
 Bricks::Bricks(Volume& v, bool release, int threads) {
@@ -69,7 +65,8 @@ Bricks::Bricks(Volume& v, bool release, int threads) {
                     static_cast<std::size_t>(bz * per_slab * kBrickNodes + b * kNodes * kNodes * planes) * sz;
                 const std::int64_t x0 = bx * kCells, run = std::min(kNodes, d[0] - x0);
                 for (std::int64_t z = 0; z < planes; ++z) {
-                    const std::int64_t gz = std::min(bz * kCells + z, d[2] - 1);
+                    const std::int64_t gz =
+                        bz * kCells + z;  // the last slab ends at the lattice's last plane
                     for (std::int64_t y = 0; y < kNodes; ++y, out += kNodes * sz) {
                         const std::int64_t gy = std::min(by * kCells + y, d[1] - 1);
                         const std::byte* in = src + static_cast<std::size_t>(gz) * plane +

@@ -14,6 +14,7 @@
 // step; along x the rows are 33 nodes long instead of nx.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 
@@ -62,6 +63,13 @@ public:
     static std::int64_t bricks_along(std::int64_t n) { return (n - 2) / kCells + 1; }
     /// The planes of nodes the last of the bricks along an axis of n nodes needs.
     static std::int64_t last_planes_along(std::int64_t n) { return n - (bricks_along(n) - 1) * kCells; }
+    /// The nodes a brick of the last slab stores, for a lattice of nz nodes along z.
+    static std::int64_t last_brick_nodes(std::int64_t nz) { return kNodes * kNodes * last_planes_along(nz); }
+    /// The nodes the bricks of a lattice of d nodes store.
+    static std::int64_t nodes_for(const std::array<std::int64_t, 3>& d) {
+        const std::int64_t per_slab = bricks_along(d[0]) * bricks_along(d[1]);
+        return per_slab * ((bricks_along(d[2]) - 1) * kBrickNodes + last_brick_nodes(d[2]));
+    }
     /// The storage size of a volume's bricks, in bytes.
     static std::uint64_t bytes_for(const Volume& v);
 
