@@ -148,6 +148,8 @@ TEST(MacrocellRanges, HoldEverySampleAndAreTightWhereRoundingCannotLeaveThem) {
                     const auto range = r.range(p);
                     ASSERT_LE(range[0], s) << c.name << " shift " << shift;
                     ASSERT_LE(s, range[1]) << c.name << " shift " << shift;
+                    ASSERT_LE(r.lowest(), range[0]) << c.name << " shift " << shift;
+                    ASSERT_LE(range[1], r.highest()) << c.name << " shift " << shift;
                     ++checked;
                 }
             });
@@ -171,6 +173,13 @@ TEST(MacrocellRanges, HoldEverySampleAndAreTightWhereRoundingCannotLeaveThem) {
     // a macrocell whose smallest node is 0 keeps 0 as its lower bound
     EXPECT_EQ(v.value(36, 28, 44), 0.0);
     EXPECT_EQ(r.range({35.5, 27.5, 43.5})[0], 0.0);
+    // the lattice's extremes (MIP and MinIP stop at them) are the nodes'
+    // own where no macrocell is widened
+    const auto [v_lo, v_hi] = v.value_range();
+    EXPECT_EQ(r.lowest(), v_lo);
+    EXPECT_EQ(r.highest(), v_hi);
+    EXPECT_EQ(v_lo, 0.0);
+    EXPECT_EQ(v_hi, 255.0);
 }
 
 // Where the nodes have both signs a sample can leave their range: nodes

@@ -8,13 +8,15 @@
 // GridSampler's bits) and folded in order, so the result is the scalar
 // loop's bit for bit. With macrocell ranges, mip and minip skip a batch
 // whose ends all lie in macrocells that cannot beat the value so far:
-// samples no larger (mip) or no smaller (minip) leave it unchanged. The
+// samples no larger (mip) or no smaller (minip) leave it unchanged, and a
+// ray whose first batch reaches the lattice's extreme takes no bounds. The
 // average skips the runs of ends in macrocells whose nodes are all 0
 // (EmptySpace::for_zeros): a sample there is 0, and adding 0 leaves the
 // sum unchanged (but for the sign of a zero sum, which c(v) does not see).
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -90,15 +92,28 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         // the most extreme sample, until none can beat v. The largest (or
         // smallest) of a set does not depend on the order it is taken in
         // (a NaN at end 0 stays, later ones never win).
+        fold_batch(0);
+        // Nothing beats the lattice's extreme: a ray whose first batch
+        // reaches it (MinIP's air around a CT) needs no bounds.
+        if (M == Model::mip ? v >= ranges->highest() : v <= ranges->lowest())
+            return RayResult{med.tf->color(v), 1.0};
         thread_local std::vector<double> bound;
         bound.resize(static_cast<std::size_t>(batches));
         const SampleGrid grid{&sp, delta, 0.0, 0};  // end j at t_near + j·δ
+        // Batch b's box runs from its first end's macrocell to the next
+        // batch's first end's (its own last end's for the last batch): the
+        // computed positions are monotone per axis along the ray, so the
+        // ends between lie in it, and each batch's far end is the next
+        // one's near end, located once.
+        std::array<std::int64_t, 3> near{};
+        if (batches > 1) near = ranges->macrocell(grid.at(simd::kBatch));
         for (std::int64_t b = 1; b < batches; ++b) {
-            const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch - 1, n);
-            const auto r = ranges->bounds(grid.at(j0), grid.at(j1));
+            const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch, n);
+            const auto far = ranges->macrocell(grid.at(j1));
+            const auto r = ranges->bounds(near, far);
             bound[static_cast<std::size_t>(b)] = M == Model::mip ? r[1] : -r[0];
+            near = far;
         }
-        fold_batch(0);
         for (;;) {
             std::size_t best = 0;  // none
             double most = M == Model::mip ? v : -v;

@@ -152,6 +152,10 @@ MacrocellRanges::MacrocellRanges(const Volume& v, int shift, int threads) : Macr
         range_[2 * i] = down(r[0]);
         range_[2 * i + 1] = up(r[1]);
     });
+    for (std::size_t i = 0; i < range_.size(); i += 2) {
+        lowest_ = std::min(lowest_, static_cast<double>(range_[i]));
+        highest_ = std::max(highest_, static_cast<double>(range_[i + 1]));
+    }
 }
 
 template <class Empty>

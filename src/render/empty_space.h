@@ -380,17 +380,23 @@ public:
     [[nodiscard]] bool within(const Vec3& a, const Vec3& b, double lo, double hi) const {
         return box(a, b, [&](const float* r) { return r[0] >= lo && r[1] <= hi; });
     }
-    /// The smallest lo and largest hi over the box from a's macrocell to
-    /// b's: every sample at a position between a and b lies in between.
-    [[nodiscard]] std::array<double, 2> bounds(const Vec3& a, const Vec3& b) const {
-        std::array<double, 2> out{INFINITY, -INFINITY};
-        box(a, b, [&](const float* r) {
-            out[0] = std::min(out[0], static_cast<double>(r[0]));
-            out[1] = std::max(out[1], static_cast<double>(r[1]));
+    /// The smallest lo and largest hi over the box from macrocell ma to mb
+    /// (MacrocellLattice::macrocell of two positions a and b): every sample
+    /// at a position between a and b lies in between.
+    [[nodiscard]] std::array<double, 2> bounds(const std::array<std::int64_t, 3>& ma,
+                                               const std::array<std::int64_t, 3>& mb) const {
+        float lo = INFINITY, hi = -INFINITY;  // (the floats' extremes are their doubles')
+        box(ma, mb, [&](const float* r) {
+            lo = std::min(lo, r[0]);
+            hi = std::max(hi, r[1]);
             return true;
         });
-        return out;
+        return {static_cast<double>(lo), static_cast<double>(hi)};
     }
+    /// The smallest lo and the largest hi over all macrocells: no sample
+    /// lies outside.
+    [[nodiscard]] double lowest() const { return lowest_; }
+    [[nodiscard]] double highest() const { return highest_; }
     /// The widened range of the macrocell holding p (tests).
     [[nodiscard]] std::array<double, 2> range(const Vec3& p) const {
         const std::size_t i = 2 * index(macrocell(p));
@@ -402,7 +408,11 @@ private:
     /// until it returns false; true when none did.
     template <class F>
     FATHOM_INLINE bool box(const Vec3& a, const Vec3& b, F&& f) const {
-        const auto ma = macrocell(a), mb = macrocell(b);
+        return box(macrocell(a), macrocell(b), f);
+    }
+    template <class F>
+    FATHOM_INLINE bool box(const std::array<std::int64_t, 3>& ma, const std::array<std::int64_t, 3>& mb,
+                           F&& f) const {
         std::array<std::int64_t, 3> m0{}, m1{};
         for (int k = 0; k < 3; ++k) {
             m0[k] = std::min(ma[k], mb[k]);
@@ -418,6 +428,7 @@ private:
     }
 
     std::vector<float> range_;  // lo, hi per macrocell, as floats rounded outwards
+    double lowest_ = INFINITY, highest_ = -INFINITY;
 };
 
 /// The packets' walk (simd::trace_packets) may end an empty run
