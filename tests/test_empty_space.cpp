@@ -349,8 +349,8 @@ TEST(EmptySpace, CoarserMacrocellsAreTheirOwnClassification) {
 // The renderer skips by 2³ macrocells up to RenderSettings::
 // fine_macrocells_max of them (the blobs' 36×28×44 cells: 18×14×22 = 5544)
 // where they skip a quarter of what 4³ ones would evaluate (the blobs:
-// more), by 4³ otherwise; the average keeps 4³, and mip skips by ranges
-// only.
+// more), by 4³ otherwise; the projections (average, mip, minip) keep 4³
+// for their macrocells of zeros.
 TEST(EmptySpace, RendererTakesFineMacrocellsWhereTheyPay) {
     const Volume v = blobs();
     const Classifier c(blob_tf(), v.smallest_spacing());
@@ -368,7 +368,9 @@ TEST(EmptySpace, RendererTakesFineMacrocellsWhereTheyPay) {
     s.model = Model::average;
     EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 4);
     s.model = Model::mip;
-    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 0);
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 4);
+    s.model = Model::minip;
+    EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 4);
     s.model = Model::emission_absorption;
     s.skip_empty = false;
     EXPECT_EQ(Renderer(v, blob_tf(), s).macrocell_cells(), 0);

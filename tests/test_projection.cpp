@@ -212,11 +212,15 @@ TEST(Projection, ImagesAreBitIdenticalWithAndWithoutSkippingAndSimd) {
             }
 }
 
-// The average skips macrocells whose nodes are all 0 (the u8 case above
-// has them too): float32 zeros, every other one −0, so that samples and
-// sums of −0 meet the skipped ones; the images are the same bits (skipping
-// a non-empty run's ends fails this and the test above).
-TEST(Projection, AveragesSkipZerosExactly) {
+// The projections skip macrocells whose nodes are all 0 (the u8 case
+// above has them too): the average adds nothing for them, and mip and
+// minip take c(0) for a ray that meets nothing else (its pixel bounds)
+// and bound the batches outside those bounds by 0. Float32 zeros, every
+// other one −0, so that samples and sums of −0 meet the skipped ones; the
+// images are the same bits (skipping a non-empty run's ends, the
+// projections' empty rays taking the background, or bounding a batch
+// inside the pixel bounds by 0 fails this or the test above).
+TEST(Projection, ZerosAreSkippedExactly) {
     Volume v = lumpy(DType::f32, 2.5, 0.0, 4);
     int negative = 0;
     for (std::int64_t k = 0; k < v.dims()[2]; ++k)
@@ -227,11 +231,14 @@ TEST(Projection, AveragesSkipZerosExactly) {
                     ++negative;
                 }
     ASSERT_GT(negative, 1000);
-    RenderSettings s;
-    s.model = Model::average;
     // above the share at which the renderer walks past zeros (kZerosWorth, 5 %)
     EXPECT_GT(EmptySpace::for_zeros(v, 2, 1).empty_fraction(), 0.05);
-    for (double step : {0.5, 1.3}) EXPECT_EQ(compare(v, ramp_tf(v), s, step), 0) << "step " << step;
+    for (Model m : {Model::average, Model::mip, Model::minip}) {
+        RenderSettings s;
+        s.model = m;
+        for (double step : {0.5, 1.3})
+            EXPECT_EQ(compare(v, ramp_tf(v), s, step), 0) << to_string(m) << " step " << step;
+    }
 }
 
 // One opaque surface, and two translucent ones of which one sits on a

@@ -104,15 +104,36 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         // batch's first end's (its own last end's for the last batch): the
         // computed positions are monotone per axis along the ray, so the
         // ends between lie in it, and each batch's far end is the next
-        // one's near end, located once.
+        // one's near end, located once. A batch whose ends all lie before
+        // the ray's first point near a macrocell of other values than 0,
+        // or after its last (the pixel bounds over EmptySpace::for_zeros:
+        // RaySpan::occupied_lo, occupied_hi, with an end of slack each way
+        // as RunFinder's), holds only ±0: its bound is 0, without a box.
+        std::int64_t before = -1, after = n + 1;
+        if (sp.occupied_lo <= sp.occupied_hi) {
+            const auto end_at = [&](double t) {
+                return std::clamp((t - sp.t_near) / delta, -0x1p52, 0x1p52);
+            };
+            if (sp.occupied_lo > -INFINITY)
+                before = static_cast<std::int64_t>(std::floor(end_at(sp.occupied_lo))) - 1;
+            if (sp.occupied_hi < INFINITY)
+                after = static_cast<std::int64_t>(std::ceil(end_at(sp.occupied_hi))) + 1;
+        }
         std::array<std::int64_t, 3> near{};
-        if (batches > 1) near = ranges->macrocell(grid.at(simd::kBatch));
+        bool near_known = false;  // near: the macrocell of batch b's first end
         for (std::int64_t b = 1; b < batches; ++b) {
             const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch, n);
+            if (std::min(j0 + simd::kBatch - 1, n) <= before || j0 >= after) {
+                bound[static_cast<std::size_t>(b)] = 0.0;
+                near_known = false;
+                continue;
+            }
+            if (!near_known) near = ranges->macrocell(grid.at(j0));
             const auto far = ranges->macrocell(grid.at(j1));
             const auto r = ranges->bounds(near, far);
             bound[static_cast<std::size_t>(b)] = M == Model::mip ? r[1] : -r[0];
             near = far;
+            near_known = true;
         }
         for (;;) {
             std::size_t best = 0;  // none

@@ -144,15 +144,17 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
     setup_lattice(*this, volume);
     tf = Classifier(transfer, volume.smallest_spacing());
     // Macrocells empty by the iso-values, by zeros (which add nothing to the
-    // average), or by the medium (the optical models; none for mip and
-    // minip, which skip by ranges): one classification per model.
+    // average, and leave mip and minip, which skip by ranges, at 0 on a
+    // ray that meets nothing else: its pixel bounds), or by the medium
+    // (the optical models): one classification per model.
     if (s.skip_empty && s.model == Model::isosurface) {
         std::vector<double> isos;
         for (const IsoSurface& iso : s.isosurfaces) isos.push_back(iso.value);
         empty_space = skipping_macrocells(volume, s, [&](int shift) {
             return EmptySpace::for_isosurfaces(volume, isos, shift, s.threads);
         });
-    } else if (s.skip_empty && s.model == Model::average) {
+    } else if (s.skip_empty &&
+               (s.model == Model::average || s.model == Model::mip || s.model == Model::minip)) {
         empty_space = EmptySpace::for_zeros(volume, kMacrocellShift, s.threads);
         if (empty_space.empty_fraction() < kZerosWorth) empty_space = {};
     } else if (s.skip_empty) {
@@ -325,7 +327,8 @@ void Renderer::Impl::pixel_bounds(const Camera& camera, PixelBounds& out) const 
     const bool zero_able =
         s.model == Model::emission_absorption || s.model == Model::absorption || s.model == Model::emission;
     const EmptySpace* es = skipper();
-    const bool walks = (segments && zero_able) || s.model == Model::isosurface || s.model == Model::average;
+    const bool walks = (segments && zero_able) || s.model == Model::isosurface || s.model == Model::average ||
+                       s.model == Model::mip || s.model == Model::minip;
     if (es == nullptr || !walks) {
         out.clear();
         return;

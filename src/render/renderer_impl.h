@@ -302,13 +302,20 @@ struct Renderer::Impl {
 
     /// True where trace() gives the background, alpha 0, for every ray whose
     /// bounds hold no non-empty macrocell (occupied_lo > occupied_hi),
-    /// whether or not it meets the volume: the model is not `average`, whose
-    /// empty rays give tf.color(0), and no background component is −0
-    /// (which compositing turns into +0). Then the render loop need not make
-    /// such a ray at all.
+    /// whether or not it meets the volume: the model is not a projection
+    /// (`average`, `mip`, `minip`), whose empty rays give tf.color(0), and
+    /// no background component is −0 (which compositing turns into +0).
+    /// Then the render loop need not make such a ray at all.
     [[nodiscard]] bool empty_rays_see_background() const {
-        return s.model != Model::average &&
+        return !zeros_project() &&
                std::none_of(bg.begin(), bg.end(), [](double c) { return c == 0.0 && std::signbit(c); });
+    }
+
+    /// The projections, whose macrocells are empty where their nodes are
+    /// all 0 (EmptySpace::for_zeros): a ray that meets no other gives
+    /// c(0) (c(−0) is the same bits: a piece's w of ±0 adds nothing).
+    [[nodiscard]] bool zeros_project() const {
+        return s.model == Model::average || s.model == Model::mip || s.model == Model::minip;
     }
 
     /// The ray's result; [occupied_lo, occupied_hi] bounds the t of its
@@ -317,8 +324,8 @@ struct Renderer::Impl {
                                   double occupied_hi = INFINITY) const {
         RaySpan span;
         if (!span_of(ray, span)) return {bg, 0.0};
-        if (!(occupied_lo <= occupied_hi)) {  // no sample can be in a non-empty macrocell
-            if (s.model == Model::average) return {tf.color(0.0), 1.0};          // every sample 0
+        if (!(occupied_lo <= occupied_hi)) {                   // no sample can be in a non-empty macrocell
+            if (zeros_project()) return {tf.color(0.0), 1.0};  // every sample ±0
             const auto nothing = [](std::int64_t) { return Segment{1.0, {}}; };  // every segment (1, 0)
             return composite(0, s.order, s.termination, bg, nothing);
         }
