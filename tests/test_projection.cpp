@@ -212,6 +212,36 @@ TEST(Projection, ImagesAreBitIdenticalWithAndWithoutSkippingAndSimd) {
             }
 }
 
+// MIP's empty macrocells are those whose nodes all hold the lowest value
+// (EmptySpace::for_value): exactly those, checked node by node against
+// brute force on the signed i16 volume, whose lowest value (−1024) fills
+// its plateaus.
+TEST(EmptySpace, ForValueIsEmptyExactlyWhereEveryNodeHoldsTheValue) {
+    const Volume v = volumes()[1].volume;
+    const double lowest = v.value_range()[0];
+    ASSERT_EQ(lowest, -1024.0);
+    const int shift = 2, edge = 1 << shift;
+    const EmptySpace es = EmptySpace::for_value(v, lowest, shift, 2);
+    const auto& md = es.dims();
+    const auto& n = v.dims();
+    std::int64_t empty = 0, full = 0;
+    for (std::int64_t z = 0; z < md[2]; ++z)
+        for (std::int64_t y = 0; y < md[1]; ++y)
+            for (std::int64_t x = 0; x < md[0]; ++x) {
+                bool all = true;  // the macrocell's nodes, its far faces included
+                for (std::int64_t k = z * edge; k <= std::min((z + 1) * edge, n[2] - 1); ++k)
+                    for (std::int64_t j = y * edge; j <= std::min((y + 1) * edge, n[1] - 1); ++j)
+                        for (std::int64_t i = x * edge; i <= std::min((x + 1) * edge, n[0] - 1); ++i)
+                            all = all && v.value(i, j, k) == lowest;
+                EXPECT_EQ(es.empty({x, y, z}), all) << x << " " << y << " " << z;
+                ++(all ? empty : full);
+            }
+    EXPECT_GT(empty, 0);
+    EXPECT_GT(full, 0);
+    // above the share at which MIP takes them (kZerosWorth, 5 %)
+    EXPECT_GT(es.empty_fraction(), 0.05);
+}
+
 // The projections skip macrocells whose nodes are all 0 (the u8 case
 // above has them too): the average adds nothing for them, and mip and
 // minip take c(0) for a ray that meets nothing else (its pixel bounds)

@@ -237,6 +237,12 @@ EmptySpace EmptySpace::for_zeros(const Volume& v, int shift, int threads) {
     return es;
 }
 
+EmptySpace EmptySpace::for_value(const Volume& v, double value, int shift, int threads) {
+    if (value == 0.0) return for_zeros(v, shift, threads);
+    return from_ranges(v, shift, threads,
+                       [value](double lo, double hi) { return lo == value && hi == value; });
+}
+
 EmptySpace EmptySpace::none(const Volume& v, int shift) {
     EmptySpace es;
     static_cast<MacrocellLattice&>(es) = MacrocellLattice(v, shift);

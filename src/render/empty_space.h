@@ -181,6 +181,10 @@ public:
     /// pre-classified grid's density, or the scalar of the average
     /// projection, to which zeros add nothing.
     static EmptySpace for_zeros(const Volume& v, int shift, int threads);
+    /// Empty where every node is exactly `value` (finite), so is every
+    /// sample (a lerp between equal values is that value): MIP's lowest
+    /// value, which no sample's maximum needs.
+    static EmptySpace for_value(const Volume& v, double value, int shift, int threads);
     /// Isosurfaces: "empty" where every sample lies on the same side of
     /// each iso-value (x < iso or not; the node range widened as
     /// MacrocellRanges widens it). Two such macrocells that touch share a

@@ -143,10 +143,10 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
                     "a scalar volume needs 1 component, this one has " + std::to_string(volume.components()));
     setup_lattice(*this, volume);
     tf = Classifier(transfer, volume.smallest_spacing());
-    // Macrocells empty by the iso-values, by zeros (which add nothing to the
-    // average, and leave mip and minip, which skip by ranges, at 0 on a
-    // ray that meets nothing else: its pixel bounds), or by the medium
-    // (the optical models): one classification per model.
+    // Macrocells empty by the iso-values, by one value (zeros, which add
+    // nothing to the average; for mip and minip, which skip by ranges, a
+    // value that a ray meeting nothing else projects: its pixel bounds),
+    // or by the medium (the optical models): one classification per model.
     if (s.skip_empty && s.model == Model::isosurface) {
         std::vector<double> isos;
         for (const IsoSurface& iso : s.isosurfaces) isos.push_back(iso.value);
@@ -155,7 +155,14 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         });
     } else if (s.skip_empty &&
                (s.model == Model::average || s.model == Model::mip || s.model == Model::minip)) {
-        empty_space = EmptySpace::for_zeros(volume, kMacrocellShift, s.threads);
+        // MIP's: the lowest value (a CT's padding outside the scanner's
+        // field of view, or its air), which no ray's largest sample needs
+        // where it meets anything else; the average's and MinIP's: 0
+        if (s.model == Model::mip) {
+            const double lowest = volume.value_range()[0];
+            if (std::isfinite(lowest)) flat = lowest;
+        }
+        empty_space = EmptySpace::for_value(volume, flat, kMacrocellShift, s.threads);
         if (empty_space.empty_fraction() < kZerosWorth) empty_space = {};
     } else if (s.skip_empty) {
         empty_space = skipping_macrocells(volume, s, [&](int shift) {

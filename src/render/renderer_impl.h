@@ -51,6 +51,7 @@ struct Renderer::Impl {
     Rgb bg{};
     EmptySpace empty_space;
     MacrocellRanges ranges;  // mip, minip and isosurfaces
+    double flat = 0.0;       // the projections' empty macrocells' value (EmptySpace::for_value)
     simd::FlatFunction flat_sigma, flat_color;
     simd::BreakTable break_table;
     simd::BatchSource batch;                  // batch.data == nullptr: no SIMD
@@ -307,14 +308,14 @@ struct Renderer::Impl {
     /// no background component is −0 (which compositing turns into +0).
     /// Then the render loop need not make such a ray at all.
     [[nodiscard]] bool empty_rays_see_background() const {
-        return !zeros_project() &&
+        return !projection() &&
                std::none_of(bg.begin(), bg.end(), [](double c) { return c == 0.0 && std::signbit(c); });
     }
 
     /// The projections, whose macrocells are empty where their nodes are
-    /// all 0 (EmptySpace::for_zeros): a ray that meets no other gives
-    /// c(0) (c(−0) is the same bits: a piece's w of ±0 adds nothing).
-    [[nodiscard]] bool zeros_project() const {
+    /// all `flat` (EmptySpace::for_value): a ray that meets no other gives
+    /// c(flat) (c(−0) is c(0)'s bits: a piece's w of ±0 adds nothing).
+    [[nodiscard]] bool projection() const {
         return s.model == Model::average || s.model == Model::mip || s.model == Model::minip;
     }
 
@@ -324,8 +325,8 @@ struct Renderer::Impl {
                                   double occupied_hi = INFINITY) const {
         RaySpan span;
         if (!span_of(ray, span)) return {bg, 0.0};
-        if (!(occupied_lo <= occupied_hi)) {                   // no sample can be in a non-empty macrocell
-            if (zeros_project()) return {tf.color(0.0), 1.0};  // every sample ±0
+        if (!(occupied_lo <= occupied_hi)) {                 // no sample can be in a non-empty macrocell
+            if (projection()) return {tf.color(flat), 1.0};  // every sample `flat` (or ±0)
             const auto nothing = [](std::int64_t) { return Segment{1.0, {}}; };  // every segment (1, 0)
             return composite(0, s.order, s.termination, bg, nothing);
         }

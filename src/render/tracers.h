@@ -68,8 +68,9 @@ Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const simd::BatchSource* simd = im.simd_source();
     const MacrocellRanges* ranges = im.ranger();
     const EmptySpace* zeros = M == Model::average ? im.skipper() : nullptr;
-    return [med, h, simd, ranges, zeros](const RaySpan& sp) {
-        return project<M>(med, sp, h, simd, ranges, zeros);
+    const double flat = im.flat;
+    return [med, h, simd, ranges, zeros, flat](const RaySpan& sp) {
+        return project<M>(med, sp, h, simd, ranges, zeros, flat);
     };
 }
 
