@@ -47,7 +47,8 @@ void scalar_ends(const ScalarMedium<T>& med, const RaySpan& sp, double delta, co
 
 template <Model M, class T>
 RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const simd::BatchSource* simd,
-                  const MacrocellRanges* ranges, const EmptySpace* zeros = nullptr, double flat = 0.0) {
+                  const MacrocellRanges* ranges, const EmptySpace* zeros = nullptr,
+                  double empty_value = 0.0) {
     static_assert(M == Model::mip || M == Model::minip || M == Model::average);
     const std::int64_t n = segment_count(sp.length(), h);
     const double delta = sp.length() / static_cast<double>(n);
@@ -106,10 +107,10 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         // ends between lie in it, and each batch's far end is the next
         // one's near end, located once. A batch whose ends all lie before
         // the ray's first point near a macrocell of other values than
-        // `flat`, or after its last (the pixel bounds over EmptySpace::
+        // `empty_value`, or after its last (the pixel bounds over EmptySpace::
         // for_value: RaySpan::occupied_lo, occupied_hi, with an end of slack
-        // each way as RunFinder's), holds only `flat` (or ±0 for 0): its
-        // bound is `flat`, without a box.
+        // each way as RunFinder's), holds only `empty_value` (or ±0 for 0): its
+        // bound is `empty_value`, without a box.
         std::int64_t before = -1, after = n + 1;
         if (sp.occupied_lo <= sp.occupied_hi) {
             const auto end_at = [&](double t) {
@@ -125,7 +126,7 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         for (std::int64_t b = 1; b < batches; ++b) {
             const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch, n);
             if (std::min(j0 + simd::kBatch - 1, n) <= before || j0 >= after) {
-                bound[static_cast<std::size_t>(b)] = M == Model::mip ? flat : -flat;
+                bound[static_cast<std::size_t>(b)] = M == Model::mip ? empty_value : -empty_value;
                 near_known = false;
                 continue;
             }

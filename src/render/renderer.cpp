@@ -160,9 +160,9 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         // where it meets anything else; the average's and MinIP's: 0
         if (s.model == Model::mip) {
             const double lowest = volume.value_range()[0];
-            if (std::isfinite(lowest)) flat = lowest;
+            if (std::isfinite(lowest)) empty_value = lowest;
         }
-        empty_space = EmptySpace::for_value(volume, flat, kMacrocellShift, s.threads);
+        empty_space = EmptySpace::for_value(volume, empty_value, kMacrocellShift, s.threads);
         if (empty_space.empty_fraction() < kZerosWorth) empty_space = {};
     } else if (s.skip_empty) {
         empty_space = skipping_macrocells(volume, s, [&](int shift) {

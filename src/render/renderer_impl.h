@@ -50,8 +50,8 @@ struct Renderer::Impl {
     double h = 0;  // step in world units
     Rgb bg{};
     EmptySpace empty_space;
-    MacrocellRanges ranges;  // mip, minip and isosurfaces
-    double flat = 0.0;       // the projections' empty macrocells' value (EmptySpace::for_value)
+    MacrocellRanges ranges;    // mip, minip and isosurfaces
+    double empty_value = 0.0;  // the projections' empty macrocells' value (EmptySpace::for_value)
     simd::FlatFunction flat_sigma, flat_color;
     simd::BreakTable break_table;
     simd::BatchSource batch;                  // batch.data == nullptr: no SIMD
@@ -313,8 +313,8 @@ struct Renderer::Impl {
     }
 
     /// The projections, whose macrocells are empty where their nodes are
-    /// all `flat` (EmptySpace::for_value): a ray that meets no other gives
-    /// c(flat) (c(−0) is c(0)'s bits: a piece's w of ±0 adds nothing).
+    /// all `empty_value` (EmptySpace::for_value): a ray that meets no other gives
+    /// c(empty_value) (c(−0) is c(0)'s bits: a piece's w of ±0 adds nothing).
     [[nodiscard]] bool projection() const {
         return s.model == Model::average || s.model == Model::mip || s.model == Model::minip;
     }
@@ -325,8 +325,8 @@ struct Renderer::Impl {
                                   double occupied_hi = INFINITY) const {
         RaySpan span;
         if (!span_of(ray, span)) return {bg, 0.0};
-        if (!(occupied_lo <= occupied_hi)) {                 // no sample can be in a non-empty macrocell
-            if (projection()) return {tf.color(flat), 1.0};  // every sample `flat` (or ±0)
+        if (!(occupied_lo <= occupied_hi)) {  // no sample can be in a non-empty macrocell
+            if (projection()) return {tf.color(empty_value), 1.0};  // every sample `empty_value` (or ±0)
             const auto nothing = [](std::int64_t) { return Segment{1.0, {}}; };  // every segment (1, 0)
             return composite(0, s.order, s.termination, bg, nothing);
         }

@@ -68,9 +68,9 @@ Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const simd::BatchSource* simd = im.simd_source();
     const MacrocellRanges* ranges = im.ranger();
     const EmptySpace* zeros = M == Model::average ? im.skipper() : nullptr;
-    const double flat = im.flat;
-    return [med, h, simd, ranges, zeros, flat](const RaySpan& sp) {
-        return project<M>(med, sp, h, simd, ranges, zeros, flat);
+    const double empty_value = im.empty_value;
+    return [med, h, simd, ranges, zeros, empty_value](const RaySpan& sp) {
+        return project<M>(med, sp, h, simd, ranges, zeros, empty_value);
     };
 }
 
