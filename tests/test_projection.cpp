@@ -220,6 +220,8 @@ TEST(EmptySpace, ForValueIsEmptyExactlyWhereEveryNodeHoldsTheValue) {
     const Volume v = volumes()[1].volume;
     const double lowest = v.value_range()[0];
     ASSERT_EQ(lowest, -1024.0);
+    // the renderer takes it from the ranges' pass over the nodes
+    EXPECT_EQ(MacrocellRanges(v, 2, 2).lowest_node(), lowest);
     const int shift = 2, edge = 1 << shift;
     const EmptySpace es = EmptySpace::for_value(v, lowest, shift, 2);
     const auto& md = es.dims();

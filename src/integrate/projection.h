@@ -108,19 +108,11 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         // one's near end, located once. A batch whose ends all lie before
         // the ray's first point near a macrocell of other values than
         // `empty_value`, or after its last (the pixel bounds over EmptySpace::
-        // for_value: RaySpan::occupied_lo, occupied_hi, with an end of slack
-        // each way as RunFinder's), holds only `empty_value` (or ±0 for 0): its
-        // bound is `empty_value`, without a box.
-        std::int64_t before = -1, after = n + 1;
-        if (sp.occupied_lo <= sp.occupied_hi) {
-            const auto end_at = [&](double t) {
-                return std::clamp((t - sp.t_near) / delta, -0x1p52, 0x1p52);
-            };
-            if (sp.occupied_lo > -INFINITY)
-                before = static_cast<std::int64_t>(std::floor(end_at(sp.occupied_lo))) - 1;
-            if (sp.occupied_hi < INFINITY)
-                after = static_cast<std::int64_t>(std::ceil(end_at(sp.occupied_hi))) + 1;
-        }
+        // for_value: SampleGrid::outside_occupied), holds only `empty_value`
+        // (or ±0 for 0): its bound is `empty_value`, without a box.
+        const auto [before, after] = sp.occupied_lo <= sp.occupied_hi
+                                         ? grid.outside_occupied()
+                                         : std::array<std::int64_t, 2>{-SampleGrid::kFar, SampleGrid::kFar};
         std::array<std::int64_t, 3> near{};
         bool near_known = false;  // near: the macrocell of batch b's first end
         for (std::int64_t b = 1; b < batches; ++b) {

@@ -147,11 +147,15 @@ std::array<double, 2> sample_range(double lo, double hi, bool nan) {
 
 MacrocellRanges::MacrocellRanges(const Volume& v, int shift, int threads) : MacrocellLattice(v, shift) {
     range_.resize(static_cast<std::size_t>(2 * dims_[0] * dims_[1] * dims_[2]));
+    std::atomic<double> lowest_node{INFINITY};  // (the macrocells' threads lower it)
     reduce_macrocells(v, dims_, shift, threads, [&](std::size_t i, double lo, double hi, bool nan) {
         const auto r = sample_range(lo, hi, nan);
         range_[2 * i] = down(r[0]);
         range_[2 * i + 1] = up(r[1]);
+        for (double cur = lowest_node.load(std::memory_order_relaxed); std::isfinite(lo) && lo < cur;)
+            if (lowest_node.compare_exchange_weak(cur, lo, std::memory_order_relaxed)) break;
     });
+    lowest_node_ = lowest_node.load();
     for (std::size_t i = 0; i < range_.size(); i += 2) {
         lowest_ = std::min(lowest_, static_cast<double>(range_[i]));
         highest_ = std::max(highest_, static_cast<double>(range_[i + 1]));

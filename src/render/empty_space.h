@@ -401,6 +401,8 @@ public:
     /// lies outside.
     [[nodiscard]] double lowest() const { return lowest_; }
     [[nodiscard]] double highest() const { return highest_; }
+    /// The smallest finite node value (+∞: none), not widened.
+    [[nodiscard]] double lowest_node() const { return lowest_node_; }
     /// The widened range of the macrocell holding p (tests).
     [[nodiscard]] std::array<double, 2> range(const Vec3& p) const {
         const std::size_t i = 2 * index(macrocell(p));
@@ -432,7 +434,7 @@ private:
     }
 
     std::vector<float> range_;  // lo, hi per macrocell, as floats rounded outwards
-    double lowest_ = INFINITY, highest_ = -INFINITY;
+    double lowest_ = INFINITY, highest_ = -INFINITY, lowest_node_ = INFINITY;
 };
 
 /// The packets' walk (simd::trace_packets) may end an empty run
@@ -475,6 +477,25 @@ struct SampleGrid {
         return span->t_near + (static_cast<double>(j - first) + offset) * delta;
     }
     [[nodiscard]] FATHOM_INLINE Vec3 at(std::int64_t j) const { return span->at(t(j)); }
+    /// The samples before the ray's first point near a non-empty
+    /// macrocell, or after its last (RaySpan::occupied_lo/hi, which must
+    /// not be crossed: lo ≤ hi), lie in empty ones: j ≤ [0] or j ≥ [1]
+    /// (∓kFar where a bound is infinite), one sample of slack each way
+    /// covering the rounding of t.
+    static constexpr std::int64_t kFar = std::int64_t{1} << 60;
+    [[nodiscard]] std::array<std::int64_t, 2> outside_occupied() const {
+        const RaySpan& sp = *span;
+        const auto index_at = [&](double t) {  // the fractional sample index at t, clamped
+            const double x = (t - sp.t_near) / delta - offset + static_cast<double>(first);
+            return std::clamp(x, -0x1p52, 0x1p52);  // ±∞ too
+        };
+        std::array<std::int64_t, 2> out{-kFar, kFar};
+        if (sp.occupied_lo > -INFINITY)
+            out[0] = static_cast<std::int64_t>(std::floor(index_at(sp.occupied_lo))) - 1;
+        if (sp.occupied_hi < INFINITY)
+            out[1] = static_cast<std::int64_t>(std::ceil(index_at(sp.occupied_hi))) + 1;
+        return out;
+    }
 };
 
 /// Walks runs of samples through macrocells for one ray: run(j, dir, limit)
@@ -508,21 +529,14 @@ public:
                                : (d == 0 ? INFINITY : -INFINITY);
             }
         }
-        // Samples before the ray's first point near a non-empty macrocell,
-        // or after its last (RaySpan::occupied_lo/hi), lie in empty ones: one
-        // sample of slack each way covers the rounding of t.
+        // Samples outside the ray's pixel bounds lie in empty macrocells.
         if (!(sp.occupied_lo <= sp.occupied_hi)) {  // the ray meets none
             before_ = kNever;
             return;
         }
-        const auto index_at = [&](double t) {  // the fractional sample index at t, clamped
-            const double x = (t - sp.t_near) / grid.delta - grid.offset + static_cast<double>(grid.first);
-            return std::clamp(x, -0x1p52, 0x1p52);  // ±∞ too
-        };
-        if (sp.occupied_lo > -INFINITY)
-            before_ = static_cast<std::int64_t>(std::floor(index_at(sp.occupied_lo))) - 1;
-        if (sp.occupied_hi < INFINITY)
-            after_ = static_cast<std::int64_t>(std::ceil(index_at(sp.occupied_hi))) + 1;
+        const auto outside = grid.outside_occupied();
+        before_ = outside[0];
+        after_ = outside[1];
     }
 
     /// A run crosses the box ahead of sample j's macrocell, in the ray's
@@ -642,7 +656,7 @@ private:
     SampleGrid g_;
     std::array<std::array<Axis, 3>, 2> axes_{};  // forward, backward
     int octant_fwd_ = 0, octant_back_ = 7;
-    static constexpr std::int64_t kNever = std::int64_t{1} << 60;
+    static constexpr std::int64_t kNever = SampleGrid::kFar;
     // Samples j ≤ before_ or ≥ after_ lie in empty macrocells.
     std::int64_t before_ = -kNever, after_ = kNever;
     // The macrocell of sample next_j_, where the next run likely starts.

@@ -158,10 +158,11 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         // MIP's: the lowest value (a CT's padding outside the scanner's
         // field of view, or its air), which no ray's largest sample needs
         // where it meets anything else; the average's and MinIP's: 0
-        if (s.model == Model::mip) {
-            const double lowest = volume.value_range()[0];
-            if (std::isfinite(lowest)) empty_value = lowest;
-        }
+        // (their ranges, which skip the rest, built here: their pass over
+        // the nodes finds the lowest)
+        if (s.model == Model::mip || s.model == Model::minip)
+            ranges = MacrocellRanges(volume, kRangeShift, s.threads);
+        if (s.model == Model::mip && std::isfinite(ranges.lowest_node())) empty_value = ranges.lowest_node();
         empty_space = EmptySpace::for_value(volume, empty_value, kMacrocellShift, s.threads);
         if (empty_space.empty_fraction() < kZerosWorth) empty_space = {};
     } else if (s.skip_empty) {
@@ -177,8 +178,7 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         index_step = std::max(index_step, h * length(Vec3{world_to_index.m[a][0], world_to_index.m[a][1],
                                                           world_to_index.m[a][2]}));
     const bool iso_ranges = s.model == Model::isosurface && index_step > empty_space.touching_step();
-    if (s.skip_empty && (s.model == Model::mip || s.model == Model::minip || iso_ranges))
-        ranges = MacrocellRanges(volume, kRangeShift, s.threads);
+    if (s.skip_empty && iso_ranges) ranges = MacrocellRanges(volume, kRangeShift, s.threads);
     if (s.simd) {
         flat_sigma = simd::flatten(tf.sigma_function());
         flat_color = simd::flatten(tf.color_function());
