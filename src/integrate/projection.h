@@ -9,7 +9,10 @@
 // loop's bit for bit. With macrocell ranges, mip and minip skip a batch
 // whose ends all lie in macrocells that cannot beat the value so far:
 // samples no larger (mip) or no smaller (minip) leave it unchanged, and a
-// ray whose first batch reaches the lattice's extreme takes no bounds. The
+// ray whose first batch reaches the lattice's extreme takes no bounds.
+// With coarse ranges (MacrocellRanges::coarser) the batches are first
+// bounded a group at a time, and a group's batches only where the group
+// could beat the value so far. The
 // average skips the runs of ends in macrocells whose nodes are all 0
 // (EmptySpace::for_zeros): a sample there is 0, and adding 0 leaves the
 // sum unchanged (but for the sign of a zero sum, which c(v) does not see).
@@ -47,8 +50,9 @@ void scalar_ends(const ScalarMedium<T>& med, const RaySpan& sp, double delta, co
 
 template <Model M, class T>
 RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const simd::BatchSource* simd,
-                  const MacrocellRanges* ranges, const EmptySpace* zeros = nullptr,
-                  double empty_value = 0.0) {
+                  const MacrocellRanges* ranges, const EmptySpace* zeros = nullptr, double empty_value = 0.0,
+                  const MacrocellRanges* coarse = nullptr) {
+    constexpr std::int64_t kGroup = 4;  // batches to a group (with coarse ranges)
     static_assert(M == Model::mip || M == Model::minip || M == Model::average);
     const std::int64_t n = segment_count(sp.length(), h);
     const double delta = sp.length() / static_cast<double>(n);
@@ -98,48 +102,102 @@ RayResult project(const ScalarMedium<T>& med, const RaySpan& sp, double h, const
         // reaches it (MinIP's air around a CT) needs no bounds.
         if (M == Model::mip ? v >= ranges->highest() : v <= ranges->lowest())
             return RayResult{med.tf->color(v), 1.0};
-        thread_local std::vector<double> bound;
-        bound.resize(static_cast<std::size_t>(batches));
+        const double empty_bound = M == Model::mip ? empty_value : -empty_value;
         const SampleGrid grid{&sp, delta, 0.0, 0};  // end j at t_near + j·δ
-        // Batch b's box runs from its first end's macrocell to the next
-        // batch's first end's (its own last end's for the last batch): the
-        // computed positions are monotone per axis along the ray, so the
-        // ends between lie in it, and each batch's far end is the next
-        // one's near end, located once. A batch whose ends all lie before
-        // the ray's first point near a macrocell of other values than
-        // `empty_value`, or after its last (the pixel bounds over EmptySpace::
-        // for_value: SampleGrid::outside_occupied), holds only `empty_value`
-        // (or ±0 for 0): its bound is `empty_value`, without a box.
+        // A batch whose ends all lie before the ray's first point near a
+        // macrocell of other values than `empty_value`, or after its last
+        // (the pixel bounds over EmptySpace::for_value:
+        // SampleGrid::outside_occupied), holds only `empty_value` (or ±0 for
+        // 0): its bound is `empty_value`, without a box; so does a group.
         const auto [before, after] = sp.occupied_lo <= sp.occupied_hi
                                          ? grid.outside_occupied()
                                          : std::array<std::int64_t, 2>{-SampleGrid::kFar, SampleGrid::kFar};
-        std::array<std::int64_t, 3> near{};
-        bool near_known = false;  // near: the macrocell of batch b's first end
-        for (std::int64_t b = 1; b < batches; ++b) {
-            const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch, n);
-            if (std::min(j0 + simd::kBatch - 1, n) <= before || j0 >= after) {
-                bound[static_cast<std::size_t>(b)] = M == Model::mip ? empty_value : -empty_value;
-                near_known = false;
-                continue;
-            }
-            if (!near_known) near = ranges->macrocell(grid.at(j0));
-            const auto far = ranges->macrocell(grid.at(j1));
-            const auto r = ranges->bounds(near, far);
-            bound[static_cast<std::size_t>(b)] = M == Model::mip ? r[1] : -r[0];
-            near = far;
-            near_known = true;
-        }
-        for (;;) {
-            std::size_t best = 0;  // none
-            double most = M == Model::mip ? v : -v;
-            for (std::size_t b = 1; b < bound.size(); ++b)
-                if (bound[b] > most) {
-                    most = bound[b];
-                    best = b;
+        auto outside = [&](std::int64_t j0, std::int64_t j_last) { return j_last <= before || j0 >= after; };
+        // take(b, bound) for batches b0 … b1 − 1: an upper bound on their
+        // samples (MIP; minus a lower bound for MinIP). Batch b's box runs
+        // from its first end's macrocell to the next batch's first end's
+        // (its own last end's for the last batch): the computed positions
+        // are monotone per axis along the ray, so the ends between lie in
+        // it, and each batch's far end is the next one's near end, located once.
+        auto bound_batches = [&](std::int64_t b0, std::int64_t b1, auto&& take) {
+            std::array<std::int64_t, 3> near{};
+            bool near_known = false;  // near: the macrocell of batch b's first end
+            for (std::int64_t b = b0; b < b1; ++b) {
+                const std::int64_t j0 = b * simd::kBatch, j1 = std::min(j0 + simd::kBatch, n);
+                if (outside(j0, std::min(j0 + simd::kBatch - 1, n))) {
+                    take(b, empty_bound);
+                    near_known = false;
+                    continue;
                 }
-            if (best == 0) break;
-            fold_batch(static_cast<std::int64_t>(best));
-            bound[best] = -INFINITY;
+                if (!near_known) near = ranges->macrocell(grid.at(j0));
+                const auto far = ranges->macrocell(grid.at(j1));
+                const auto r = ranges->bounds(near, far);
+                take(b, M == Model::mip ? r[1] : -r[0]);
+                near = far;
+                near_known = true;
+            }
+        };
+        if (coarse == nullptr) {
+            thread_local std::vector<double> bound;
+            bound.resize(static_cast<std::size_t>(batches));
+            bound_batches(1, batches,
+                          [&](std::int64_t b, double x) { bound[static_cast<std::size_t>(b)] = x; });
+            for (;;) {
+                std::size_t best = 0;  // none
+                double most = M == Model::mip ? v : -v;
+                for (std::size_t b = 1; b < bound.size(); ++b)
+                    if (bound[b] > most) {
+                        most = bound[b];
+                        best = b;
+                    }
+                if (best == 0) break;
+                fold_batch(static_cast<std::int64_t>(best));
+                bound[best] = -INFINITY;
+            }
+        } else {
+            // Groups of kGroup batches first, each bounded by the coarse
+            // macrocells of its box (from its first end to the next group's,
+            // which holds its batches' boxes); a group's batches get their
+            // own bounds when it is the best candidate. The candidates that
+            // could beat v in a list: batches (b ≥ 1) and groups (b < 0:
+            // the group from batch −1 − b).
+            struct Candidate {
+                double bound;
+                std::int64_t b;
+            };
+            thread_local std::vector<Candidate> cand;
+            cand.clear();
+            auto add = [&](std::int64_t b, double x) {
+                if (x > (M == Model::mip ? v : -v)) cand.push_back({x, b});
+            };
+            for (std::int64_t b0 = 1; b0 < batches; b0 += kGroup) {
+                const std::int64_t b1 = std::min(b0 + kGroup, batches);
+                const std::int64_t j0 = b0 * simd::kBatch, j1 = std::min(b1 * simd::kBatch, n);
+                if (outside(j0, std::min(b1 * simd::kBatch - 1, n))) {
+                    add(-1 - b0, empty_bound);
+                    continue;
+                }
+                const auto r = coarse->bounds(coarse->macrocell(grid.at(j0)), coarse->macrocell(grid.at(j1)));
+                add(-1 - b0, M == Model::mip ? r[1] : -r[0]);
+            }
+            for (;;) {
+                std::size_t best = cand.size();  // none
+                double most = M == Model::mip ? v : -v;
+                for (std::size_t k = 0; k < cand.size(); ++k)
+                    if (cand[k].bound > most) {
+                        most = cand[k].bound;
+                        best = k;
+                    }
+                if (best == cand.size()) break;
+                const std::int64_t b = cand[best].b;
+                // (in order: of equal bounds the nearest goes first, so that
+                // a ray's batches are read from the volume in turn)
+                cand.erase(cand.begin() + static_cast<std::ptrdiff_t>(best));
+                if (b < 0)
+                    bound_batches(-1 - b, std::min(-1 - b + kGroup, batches), add);
+                else
+                    fold_batch(b);
+            }
         }
     }
     if constexpr (M == Model::average) v /= static_cast<double>(n);

@@ -162,6 +162,29 @@ MacrocellRanges::MacrocellRanges(const Volume& v, int shift, int threads) : Macr
     }
 }
 
+MacrocellRanges MacrocellRanges::coarser(int levels) const {
+    MacrocellRanges c;
+    static_cast<MacrocellLattice&>(c) = MacrocellLattice(nodes_, shift_ + levels);
+    const auto& cd = c.dims_;
+    c.range_.resize(static_cast<std::size_t>(2 * cd[0] * cd[1] * cd[2]));
+    for (std::size_t i = 0; i < c.range_.size(); i += 2) {
+        c.range_[i] = INFINITY;
+        c.range_[i + 1] = -INFINITY;
+    }
+    for (std::int64_t z = 0; z < dims_[2]; ++z)
+        for (std::int64_t y = 0; y < dims_[1]; ++y)
+            for (std::int64_t x = 0; x < dims_[0]; ++x) {
+                const std::size_t f = 2 * index({x, y, z}),
+                                  k = 2 * c.index({x >> levels, y >> levels, z >> levels});
+                c.range_[k] = std::min(c.range_[k], range_[f]);
+                c.range_[k + 1] = std::max(c.range_[k + 1], range_[f + 1]);
+            }
+    c.lowest_ = lowest_;
+    c.highest_ = highest_;
+    c.lowest_node_ = lowest_node_;
+    return c;
+}
+
 template <class Empty>
 EmptySpace EmptySpace::from_ranges(const Volume& v, int shift, int threads, Empty&& empty) {
     EmptySpace es;

@@ -397,6 +397,12 @@ public:
         });
         return {static_cast<double>(lo), static_cast<double>(hi)};
     }
+    /// The ranges of macrocells 2^levels times as large along each axis
+    /// (the lattice's shift + levels): each the smallest lo and largest hi
+    /// of the macrocells it holds, whose indices are its own shifted up by
+    /// `levels` (so a box of them holds the box of these between the same
+    /// positions).
+    [[nodiscard]] MacrocellRanges coarser(int levels) const;
     /// The smallest lo and the largest hi over all macrocells: no sample
     /// lies outside.
     [[nodiscard]] double lowest() const { return lowest_; }

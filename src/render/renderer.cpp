@@ -83,6 +83,12 @@ EmptySpace skipping_macrocells(const Volume& v, const RenderSettings& s, Classif
 /// macrocell, 12 MB on the bunny; docs/performance.md, "Projections and
 /// isosurfaces").
 constexpr int kRangeShift = 2;
+/// MinIP's coarse ranges (project's groups): macrocells 2^kCoarseLevels
+/// times the ranges' edge. MIP does without: a CT's maxima lie in thin
+/// bone, whose coarse macrocells' highs stand above most rays' maxima, so
+/// most groups would be split (docs/performance.md, "Projections and
+/// isosurfaces").
+constexpr int kCoarseLevels = 2;
 
 /// The least share of inactive blocks inside non-empty macrocells at which
 /// the inactive-block bits pay (docs/performance.md, "Blocks in the
@@ -160,8 +166,10 @@ void Renderer::Impl::setup_scalar(const Volume& volume, const TransferFunction& 
         // where it meets anything else; the average's and MinIP's: 0
         // (their ranges, which skip the rest, built here: their pass over
         // the nodes finds the lowest)
-        if (s.model == Model::mip || s.model == Model::minip)
+        if (s.model == Model::mip || s.model == Model::minip) {
             ranges = MacrocellRanges(volume, kRangeShift, s.threads);
+            if (s.model == Model::minip) coarse_ranges = ranges.coarser(kCoarseLevels);
+        }
         if (s.model == Model::mip && std::isfinite(ranges.lowest_node())) empty_value = ranges.lowest_node();
         empty_space = EmptySpace::for_value(volume, empty_value, kMacrocellShift, s.threads);
         if (empty_space.empty_fraction() < kZerosWorth) empty_space = {};

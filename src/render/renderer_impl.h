@@ -50,8 +50,9 @@ struct Renderer::Impl {
     double h = 0;  // step in world units
     Rgb bg{};
     EmptySpace empty_space;
-    MacrocellRanges ranges;    // mip, minip and isosurfaces
-    double empty_value = 0.0;  // the projections' empty macrocells' value (EmptySpace::for_value)
+    MacrocellRanges ranges;         // mip, minip and isosurfaces
+    MacrocellRanges coarse_ranges;  // minip: ranges.coarser(kCoarseLevels)
+    double empty_value = 0.0;       // the projections' empty macrocells' value (EmptySpace::for_value)
     simd::FlatFunction flat_sigma, flat_color;
     simd::BreakTable break_table;
     simd::BatchSource batch;                  // batch.data == nullptr: no SIMD

@@ -69,8 +69,10 @@ Tracer projection_tracer(const ScalarMedium<T>& med, const Renderer::Impl& im) {
     const MacrocellRanges* ranges = im.ranger();
     const EmptySpace* zeros = M == Model::average ? im.skipper() : nullptr;
     const double empty_value = im.empty_value;
-    return [med, h, simd, ranges, zeros, empty_value](const RaySpan& sp) {
-        return project<M>(med, sp, h, simd, ranges, zeros, empty_value);
+    const MacrocellRanges* coarse =
+        ranges != nullptr && im.coarse_ranges.dims()[0] > 0 ? &im.coarse_ranges : nullptr;
+    return [med, h, simd, ranges, zeros, empty_value, coarse](const RaySpan& sp) {
+        return project<M>(med, sp, h, simd, ranges, zeros, empty_value, coarse);
     };
 }
 
