@@ -1,16 +1,18 @@
 // Work spread over threads (the set-up passes: macrocells, inactive blocks,
 // pixel bounds; the differentiable renderer's and the fitters' passes): the
-// calling thread works too, and every helper returns when all the work is
-// done.
+// calling thread works too, the others are the process's kept workers
+// (run_parallel), and every helper returns when all the work is done,
+// rethrowing the first exception a thread's share threw.
 #pragma once
 
 #include <algorithm>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
-#include <exception>
 #include <thread>
 #include <vector>
+
+#include "core/thread_pool.h"
 
 namespace fathom {
 
@@ -30,10 +32,7 @@ void parallel_items(std::int64_t n, int threads, F&& f) {
     };
     const int nt =
         static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(resolve_threads(threads), n)));
-    std::vector<std::thread> pool;
-    for (int t = 1; t < nt; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
+    run_parallel(nt, [&](int) { worker(); });
 }
 
 /// f(begin, end) over [0, n) in one contiguous chunk per thread, on up to
@@ -42,10 +41,7 @@ template <class F>
 void parallel_chunks(std::int64_t n, int threads, F&& f) {
     const int nt =
         static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(resolve_threads(threads), n)));
-    std::vector<std::thread> pool;
-    for (int t = 1; t < nt; ++t) pool.emplace_back([&, t] { f(n * t / nt, n * (t + 1) / nt); });
-    f(0, n / nt);
-    for (auto& t : pool) t.join();
+    run_parallel(nt, [&](int t) { f(n * t / nt, n * (t + 1) / nt); });
 }
 
 /// f(begin, end, thread) over [0, count) in exactly `threads` contiguous
@@ -55,20 +51,10 @@ void parallel_chunks(std::int64_t n, int threads, F&& f) {
 template <class F>
 void parallel_blocks(std::size_t count, int threads, F&& f) {
     const auto nt = static_cast<std::size_t>(std::max(1, threads));
-    std::vector<std::exception_ptr> failure(nt);
-    auto work = [&](std::size_t t) {
-        try {
-            f(count * t / nt, count * (t + 1) / nt, static_cast<int>(t));
-        } catch (...) {
-            failure[t] = std::current_exception();
-        }
-    };
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < nt; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
-    for (const auto& e : failure)
-        if (e) std::rethrow_exception(e);
+    run_parallel(static_cast<int>(nt), [&](int t) {
+        const auto k = static_cast<std::size_t>(t);
+        f(count * k / nt, count * (k + 1) / nt, t);
+    });
 }
 
 }  // namespace fathom

@@ -4,7 +4,6 @@
 #include <atomic>
 #include <exception>
 #include <mutex>
-#include <thread>
 #include <vector>
 
 #include "fathom/error.h"
@@ -441,11 +440,7 @@ void Renderer::render(const Camera& camera, Image& img, const ProgressFn& progre
             next = tiles;
         }
     };
-    const int n = std::min(resolve_threads(s.threads), tiles);
-    std::vector<std::thread> pool;
-    for (int i = 1; i < n; ++i) pool.emplace_back(worker);
-    worker();
-    for (auto& th : pool) th.join();
+    run_parallel(std::min(resolve_threads(s.threads), tiles), [&](int) { worker(); });
     impl_->keep_bounds(std::move(held));
     if (failure) std::rethrow_exception(failure);
 }

@@ -15,7 +15,6 @@
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <thread>
 #include <vector>
 
 #include "fathom/error.h"
@@ -147,11 +146,7 @@ PreintegrationTable build_preintegration_table(const Classifier& tf, double v_lo
         std::vector<Segment> cells, windows;
         for (int d = next++; d < size; d = next++) fill_distance(t, cp, d, cells, windows);
     };
-    const int nt = std::min(resolve_threads(threads), size - 1);
-    std::vector<std::thread> pool;
-    for (int i = 1; i < nt; ++i) pool.emplace_back(worker);
-    worker();
-    for (auto& th : pool) th.join();
+    run_parallel(std::min(resolve_threads(threads), size - 1), [&](int) { worker(); });
     return t;
 }
 
