@@ -3,9 +3,7 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <cstdint>
 #include <exception>
-#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -72,8 +70,10 @@ public:
         job_ = &f;
         failure_.assign(static_cast<std::size_t>(n), nullptr);
         left_.store(n - 1, std::memory_order_relaxed);
-        // the region's number (high bits) and thread count (low byte) in one
-        // word, so that a worker reads both at once
+        // the region's number (high 24 bits, wrapping) and thread count (low
+        // byte) in one word, so that a worker reads both at once: a worker
+        // sees each new word (every region wakes them all), and only one
+        // asleep through 2²⁴ regions could take a later word for its last
         const unsigned next = ((region_.load(std::memory_order_relaxed) >> 8) + 1) << 8;
         region_.store(next | static_cast<unsigned>(n), std::memory_order_release);
         region_.notify_all();
