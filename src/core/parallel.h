@@ -10,7 +10,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <thread>
-#include <vector>
 
 #include "core/thread_pool.h"
 
@@ -27,12 +26,11 @@ inline int resolve_threads(int threads) {
 template <class F>
 void parallel_items(std::int64_t n, int threads, F&& f) {
     std::atomic<std::int64_t> next{0};
-    auto worker = [&] {
-        for (std::int64_t i = next++; i < n; i = next++) f(i);
-    };
     const int nt =
         static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(resolve_threads(threads), n)));
-    run_parallel(nt, [&](int) { worker(); });
+    run_parallel(nt, [&](int) {
+        for (std::int64_t i = next++; i < n; i = next++) f(i);
+    });
 }
 
 /// f(begin, end) over [0, n) in one contiguous chunk per thread, on up to

@@ -33,6 +33,12 @@ constexpr int kSpins = 4000;
 /// travels in the low byte of the region's word).
 constexpr int kMostThreads = 255;
 
+/// Rethrows the first of a region's shares' exceptions (the lowest share), if any.
+void rethrow_first(const std::vector<std::exception_ptr>& failure) {
+    for (const auto& e : failure)
+        if (e) std::rethrow_exception(e);
+}
+
 void run_on_new_threads(int n, const std::function<void(int)>& f) {
     std::vector<std::exception_ptr> failure(static_cast<std::size_t>(n));
     auto work = [&](int t) {
@@ -47,8 +53,7 @@ void run_on_new_threads(int n, const std::function<void(int)>& f) {
     for (int t = 1; t < n; ++t) pool.emplace_back(work, t);
     work(0);
     for (auto& th : pool) th.join();
-    for (const auto& e : failure)
-        if (e) std::rethrow_exception(e);
+    rethrow_first(failure);
 }
 
 class Workers {
@@ -91,8 +96,7 @@ public:
                 left_.wait(left, std::memory_order_acquire);
         }
         job_ = nullptr;
-        for (const auto& e : failure_)
-            if (e) std::rethrow_exception(e);
+        rethrow_first(failure_);
         return true;
     }
 
